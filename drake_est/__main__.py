@@ -1,0 +1,5 @@
+import sys
+
+from drake_est.cli import main
+
+sys.exit(main())

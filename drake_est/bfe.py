@@ -1,0 +1,378 @@
+"""Basis-function expansions (thesis Sec. 6.3) and ridge regression (Sec. 6.4).
+
+A :class:`BasisFunctionExpansion` maps inputs ``X`` of shape ``(N, d)`` to a
+feature matrix ``Phi`` of shape ``(N, K)`` with kernels of local support placed
+on a grid of centres (1-D or a product grid, Eqs. (9.13)-(9.14) and
+(9.17)-(9.18)).  Options:
+
+* ``kernel``: ``"gaussian"`` (Eq. (9.13)), ``"triangular"`` (piecewise affine fit)
+  or ``"rectangular"`` (piecewise constant fit);
+* ``normalize``: normalized expansion (Sec. 6.3 "Normalization"), which keeps
+  its trend outside the data instead of falling to zero;
+* ``period``: per input dimension, a period for wrapped distances (motor
+  position on the circle, Sec. 9.6);
+* ``sign_split``: the Coulomb discontinuity of Sec. 9.3 -- the features are
+  duplicated, one copy active only for positive velocity, one only for negative.
+
+:func:`ridge_fit` solves the L2-regularized least-squares problem (6.8) by a QR
+factorization of the data followed by an SVD of the small augmented system
+(never an explicit inverse).  :func:`select_ridge` chooses the penalty by
+K-fold cross-validation or by evidence (marginal-likelihood) maximization, and
+:func:`select_bfe` chooses the number of kernels and the width as well.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+from drake_est.errors import DrakeEstError, IdentifiabilityError
+
+KERNELS = ("gaussian", "triangular", "rectangular")
+
+
+def _as_2d(X) -> np.ndarray:
+    X = np.asarray(X, dtype=float)
+    if X.ndim == 1:
+        X = X[:, None]
+    if X.ndim != 2:
+        raise DrakeEstError(f"basis-function input must be (N,) or (N, d), got shape {X.shape}")
+    return X
+
+
+def uniform_centers(lo: float, hi: float, n: int, periodic: bool = False) -> np.ndarray:
+    """``n`` evenly spaced centres on [lo, hi] (on [lo, hi) when periodic)."""
+    if n < 1:
+        raise DrakeEstError(f"number of basis functions must be >= 1, got {n}")
+    if periodic:
+        return lo + (hi - lo) * np.arange(n) / n
+    if n == 1:
+        return np.array([(lo + hi) / 2.0])
+    return np.linspace(lo, hi, n)
+
+
+@dataclass
+class BasisFunctionExpansion:
+    """Kernels on a (product) grid of centres.
+
+    Parameters
+    ----------
+    centers : list of 1-D arrays, one per input dimension; the product grid is used.
+    widths : kernel width per dimension (standard deviation for the Gaussian,
+        half-support for triangular/rectangular).  Default: the centre spacing.
+    kernel : "gaussian" | "triangular" | "rectangular".
+    normalize : divide each row by the sum of its kernel activations.
+    period : per-dimension period (None for non-periodic), e.g. 2*pi for motor angle.
+    """
+
+    centers: list
+    widths: object = None
+    kernel: str = "gaussian"
+    normalize: bool = False
+    period: object = None
+    _grid: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        if self.kernel not in KERNELS:
+            raise DrakeEstError(f"unknown kernel '{self.kernel}'; choose one of {KERNELS}")
+        if isinstance(self.centers, np.ndarray) and self.centers.ndim == 1:
+            self.centers = [self.centers]
+        self.centers = [np.asarray(c, dtype=float).ravel() for c in self.centers]
+        d = len(self.centers)
+        per = self.period if isinstance(self.period, (list, tuple, np.ndarray)) else [self.period] * d
+        if len(per) != d:
+            raise DrakeEstError(f"period has {len(per)} entries for {d} input dimensions")
+        self.period = list(per)
+        if self.widths is None:
+            w = []
+            for c, p in zip(self.centers, self.period):
+                if len(c) > 1:
+                    w.append(float(np.min(np.diff(np.sort(c)))))
+                elif p is not None:
+                    w.append(float(p))
+                else:
+                    w.append(1.0)
+            self.widths = w
+        widths = np.broadcast_to(np.asarray(self.widths, dtype=float), (d,)).copy()
+        if np.any(widths <= 0):
+            raise DrakeEstError(f"basis-function widths must be positive, got {widths}")
+        self.widths = widths
+        mesh = np.meshgrid(*self.centers, indexing="ij")
+        self._grid = np.stack([m.ravel() for m in mesh], axis=1)
+
+    @property
+    def n_inputs(self) -> int:
+        return len(self.centers)
+
+    @property
+    def n_basis(self) -> int:
+        return self._grid.shape[0]
+
+    @property
+    def grid(self) -> np.ndarray:
+        """Centres as an array (K, d)."""
+        return self._grid
+
+    @classmethod
+    def uniform(cls, lo, hi, n, width_factor: float = 1.0, kernel="gaussian", normalize=False, period=None):
+        """Uniform (product) grid: ``lo``, ``hi``, ``n`` scalars or per-dimension lists.
+        The width is ``width_factor`` times the centre spacing."""
+        lo, hi, n = np.atleast_1d(lo), np.atleast_1d(hi), np.atleast_1d(n).astype(int)
+        d = max(len(lo), len(hi), len(n))
+        lo, hi, n = (np.broadcast_to(a, (d,)) for a in (lo, hi, n))
+        per = period if isinstance(period, (list, tuple)) else [period] * d
+        centers, widths = [], []
+        for i in range(d):
+            periodic = per[i] is not None
+            c = uniform_centers(lo[i], hi[i], n[i], periodic=periodic)
+            spacing = (hi[i] - lo[i]) / (n[i] if periodic else max(n[i] - 1, 1))
+            centers.append(c)
+            widths.append(width_factor * (spacing if spacing > 0 else 1.0))
+        return cls(centers=centers, widths=widths, kernel=kernel, normalize=normalize, period=per)
+
+    @classmethod
+    def from_data(cls, X, n, width_factor: float = 1.0, kernel="gaussian", normalize=True, period=None,
+                  quantile: float = 0.0):
+        """Grid spanning the data range of ``X`` (optionally trimmed by ``quantile``)."""
+        X = _as_2d(X)
+        if quantile > 0:
+            lo, hi = np.quantile(X, quantile, axis=0), np.quantile(X, 1 - quantile, axis=0)
+        else:
+            lo, hi = X.min(axis=0), X.max(axis=0)
+        per = period if isinstance(period, (list, tuple)) else [period] * X.shape[1]
+        lo = np.array([0.0 if p is not None else l for l, p in zip(lo, per)])
+        hi = np.array([p if p is not None else h for h, p in zip(hi, per)])
+        return cls.uniform(lo, hi, n, width_factor=width_factor, kernel=kernel, normalize=normalize, period=per)
+
+    def _distances(self, X) -> np.ndarray:
+        """Scaled distances (N, K, d) divided by the widths."""
+        X = _as_2d(X)
+        if X.shape[1] != self.n_inputs:
+            raise DrakeEstError(f"expansion has {self.n_inputs} input dimensions, data has {X.shape[1]}")
+        diff = X[:, None, :] - self._grid[None, :, :]
+        for i, p in enumerate(self.period):
+            if p is not None:
+                diff[..., i] = (diff[..., i] + p / 2.0) % p - p / 2.0
+        return diff / self.widths
+
+    def features(self, X, velocity=None, sign_split: bool = False) -> np.ndarray:
+        """Feature matrix Phi (N, K), or (N, 2K) with ``sign_split`` (Sec. 9.3):
+        first K columns active for velocity > 0, last K for velocity < 0."""
+        X = _as_2d(X)
+        N = X.shape[0]
+        K = self.n_basis
+        out = np.empty((N, K))
+        chunk = max(1, int(2e6 // max(K * self.n_inputs, 1)))
+        for s in range(0, N, chunk):
+            z = self._distances(X[s:s + chunk])
+            if self.kernel == "gaussian":
+                phi = np.exp(-0.5 * np.sum(z * z, axis=2))
+            elif self.kernel == "triangular":
+                phi = np.prod(np.clip(1.0 - np.abs(z), 0.0, None), axis=2)
+            else:
+                phi = np.all(np.abs(z) < 0.5 + 1e-12, axis=2).astype(float)
+            if self.normalize:
+                tot = phi.sum(axis=1, keepdims=True)
+                tot[tot <= 1e-300] = 1.0
+                phi = phi / tot
+            out[s:s + chunk] = phi
+        if sign_split:
+            if velocity is None:
+                raise DrakeEstError("sign_split features need the velocity")
+            v = np.asarray(velocity, dtype=float).ravel()
+            if v.shape[0] != N:
+                raise DrakeEstError(f"velocity has {v.shape[0]} samples, positions have {N}")
+            pos = (v > 0).astype(float)[:, None]
+            neg = (v < 0).astype(float)[:, None]
+            out = np.hstack([out * pos, out * neg])
+        return out
+
+    __call__ = features
+
+
+# --------------------------------------------------------------------------- ridge
+
+
+@dataclass
+class RidgeFit:
+    """Result of :func:`ridge_fit`."""
+
+    coef: np.ndarray
+    lam: float
+    dof: float  # effective number of parameters, trace of the hat matrix
+    rank: int
+    singular_values: np.ndarray
+
+    def predict(self, A) -> np.ndarray:
+        return np.asarray(A) @ self.coef
+
+
+def _penalty_matrix(p: int, penalize) -> np.ndarray:
+    if penalize is None:
+        return np.ones(p)
+    pen = np.asarray(penalize, dtype=float).ravel()
+    if pen.size != p:
+        raise DrakeEstError(f"penalize mask has {pen.size} entries for {p} parameters")
+    return pen
+
+
+def check_excitation(A, names=None, rtol: float = 1e-9) -> None:
+    """Raise :class:`IdentifiabilityError` naming unexcited regressor columns.
+
+    A column that is identically zero, or a set of columns in the null space of
+    A (direction of the right singular vector), cannot be estimated from data."""
+    A = np.asarray(A, dtype=float)
+    names = list(names) if names is not None else [f"column {i}" for i in range(A.shape[1])]
+    norms = np.linalg.norm(A, axis=0)
+    dead = [names[i] for i in np.flatnonzero(norms <= rtol * max(norms.max(initial=0.0), 1e-300))]
+    if dead:
+        raise IdentifiabilityError(f"regressor(s) not excited by the data (all zero): {', '.join(dead)}")
+    if A.shape[0] < A.shape[1]:
+        raise IdentifiabilityError(f"{A.shape[0]} samples are fewer than the {A.shape[1]} parameters")
+    scaled = A / norms
+    _, s, vt = np.linalg.svd(scaled, full_matrices=False)
+    if s[-1] <= rtol * s[0] * max(A.shape):
+        w = vt[-1]
+        top = np.argsort(-np.abs(w))[:3]
+        combo = " + ".join(f"{w[i]:+.2f}*{names[i]}" for i in top)
+        raise IdentifiabilityError(
+            f"regressors are linearly dependent (condition number {s[0] / max(s[-1], 1e-300):.1e}); "
+            f"the data do not separate the direction {combo}")
+
+
+def ridge_fit(A, y, lam: float = 0.0, penalize=None, check: bool = False, names=None) -> RidgeFit:
+    """Minimize ||y - A k||^2 + lam * ||D k||^2 with D = diag(penalize) (Eq. (6.8)).
+
+    Solved as the augmented least-squares problem [A; sqrt(lam) D] k = [y; 0] by
+    SVD (LAPACK gelsd), which is stable also for rank-deficient ``A`` when lam > 0.
+    ``check=True`` first verifies identifiability (only meaningful when lam = 0)."""
+    A = np.asarray(A, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if A.ndim != 2 or y.shape[0] != A.shape[0]:
+        raise DrakeEstError(f"ridge: A has shape {A.shape} but y has {y.shape[0]} rows")
+    if not np.all(np.isfinite(A)) or not np.all(np.isfinite(y)):
+        raise DrakeEstError("ridge: regressors or targets contain NaN/inf")
+    p = A.shape[1]
+    if check and lam == 0:
+        check_excitation(A, names)
+    d = _penalty_matrix(p, penalize)
+    if lam > 0:
+        Aa = np.vstack([A, np.sqrt(lam) * np.diag(d)])
+        ya = np.concatenate([y, np.zeros((p,) + y.shape[1:])])
+    else:
+        Aa, ya = A, y
+    coef, _, rank, sv = scipy.linalg.lstsq(Aa, ya, lapack_driver="gelsd")
+    # effective degrees of freedom: sum s_i^2/(s_i^2+lam) for D = I; general D via the augmented SVD
+    if lam > 0:
+        _, s_aug, vt = np.linalg.svd(Aa, full_matrices=False)
+        # hat-matrix trace = ||A V S^-1||_F^2
+        AV = A @ vt.T
+        dof = float(np.sum((AV / np.where(s_aug > 0, s_aug, np.inf)) ** 2))
+    else:
+        dof = float(rank)
+    return RidgeFit(coef=coef, lam=float(lam), dof=dof, rank=int(rank), singular_values=sv)
+
+
+def _kfold_indices(n: int, k: int, contiguous: bool = True, seed: int = 0):
+    if contiguous:
+        edges = np.linspace(0, n, k + 1).astype(int)
+        return [np.arange(edges[i], edges[i + 1]) for i in range(k)]
+    rng = np.random.default_rng(seed)
+    perm = rng.permutation(n)
+    return np.array_split(perm, k)
+
+
+def cv_error(A, y, lam: float, penalize=None, folds: int = 5, contiguous: bool = True, seed: int = 0) -> float:
+    """Mean squared K-fold cross-validation error of ridge regression at ``lam``.
+
+    ``contiguous`` folds (blocks in time) are the honest choice for time series."""
+    A = np.asarray(A, dtype=float)
+    y = np.asarray(y, dtype=float)
+    n = A.shape[0]
+    sse = 0.0
+    for test in _kfold_indices(n, folds, contiguous, seed):
+        train = np.setdiff1d(np.arange(n), test, assume_unique=True)
+        fit = ridge_fit(A[train], y[train], lam, penalize)
+        sse += float(np.sum((y[test] - A[test] @ fit.coef) ** 2))
+    return sse / n
+
+
+def log_evidence(A, y, lam: float, noise_var: float | None = None) -> float:
+    """Log marginal likelihood of Bayesian linear regression with prior k ~ N(0, s2/lam I)
+    and noise variance s2 (profiled out when None). Used for evidence maximization."""
+    A = np.asarray(A, dtype=float)
+    y = np.asarray(y, dtype=float).ravel()
+    n, p = A.shape
+    u, s, vt = np.linalg.svd(A, full_matrices=False)
+    uty = u.T @ y
+    resid_out = float(y @ y - uty @ uty)
+    shrink = s**2 / (s**2 + lam)
+    # y^T (I + A A^T / lam)^-1 y
+    quad = resid_out + float(np.sum(uty**2 * (1 - shrink)))
+    logdet = float(np.sum(np.log1p(s**2 / lam)))
+    if noise_var is None:
+        s2 = quad / n
+        return -0.5 * (n * np.log(2 * np.pi * s2) + logdet + n)
+    return -0.5 * (n * np.log(2 * np.pi * noise_var) + logdet + quad / noise_var)
+
+
+def select_ridge(A, y, lams=None, penalize=None, method: str = "cv", folds: int = 5, contiguous: bool = True,
+                 seed: int = 0):
+    """Choose the ridge penalty over a log grid by ``"cv"`` or ``"evidence"``.
+
+    Returns ``(best_lam, scores)`` with scores as CV error (lower is better) or
+    log evidence (higher is better)."""
+    if lams is None:
+        lams = np.logspace(-6, 3, 19)
+    lams = np.asarray(lams, dtype=float)
+    if method == "cv":
+        scores = np.array([cv_error(A, y, l, penalize, folds, contiguous, seed) for l in lams])
+        best = lams[int(np.argmin(scores))]
+    elif method == "evidence":
+        if penalize is not None and not np.all(np.asarray(penalize) == 1):
+            raise DrakeEstError("evidence maximization supports a uniform penalty only; use method='cv'")
+        scores = np.array([log_evidence(A, y, l) for l in lams])
+        best = lams[int(np.argmax(scores))]
+    else:
+        raise DrakeEstError(f"unknown selection method '{method}'; use 'cv' or 'evidence'")
+    return float(best), scores
+
+
+def select_bfe(X, y, n_grid=(5, 10, 20, 40), width_factors=(0.5, 1.0, 2.0), lams=None, kernel="gaussian",
+               normalize=True, period=None, base=None, folds: int = 5, velocity=None, sign_split=False,
+               contiguous: bool = True, seed: int = 0):
+    """Choose the number of kernels, their width and the ridge penalty by K-fold CV.
+
+    ``base`` (N, b) are extra unpenalized regressors (e.g. the nominal friction
+    model's columns) fitted together with the expansion.  Returns a dict with
+    the chosen ``bfe``, ``lam``, ``cv_mse`` and the table of all candidates."""
+    X = _as_2d(X)
+    y = np.asarray(y, dtype=float)
+    if lams is None:
+        lams = np.logspace(-5, 2, 8)
+    table = []
+    best = None
+    for n in n_grid:
+        for wf in width_factors:
+            bfe = BasisFunctionExpansion.from_data(X, n, width_factor=wf, kernel=kernel, normalize=normalize,
+                                                   period=period)
+            Phi = bfe.features(X, velocity=velocity, sign_split=sign_split)
+            if base is not None:
+                A = np.hstack([np.asarray(base, dtype=float), Phi])
+                pen = np.r_[np.zeros(base.shape[1]), np.ones(Phi.shape[1])]
+            else:
+                A, pen = Phi, None
+            if A.shape[0] < 2 * A.shape[1]:
+                continue
+            for lam in lams:
+                err = cv_error(A, y, lam, pen, folds, contiguous, seed)
+                table.append({"n": int(n), "width_factor": float(wf), "lam": float(lam), "cv_mse": err})
+                if best is None or err < best["cv_mse"]:
+                    best = {"bfe": bfe, "lam": float(lam), "cv_mse": err, "n": int(n), "width_factor": float(wf)}
+    if best is None:
+        raise IdentifiabilityError(
+            f"too few samples ({X.shape[0]}) for any candidate basis (smallest needs "
+            f"{2 * (min(n_grid) ** X.shape[1])} samples)")
+    best["table"] = table
+    return best

@@ -1,0 +1,63 @@
+"""The ``drake-est`` command line.
+
+Subcommands live in modules of this package; each module defines
+``register(subparsers)`` which adds its parser and sets ``func`` to a
+callable taking the parsed ``args`` and returning an exit code.  Modules are
+discovered automatically, so adding a subcommand means adding one file.
+
+Errors derived from :class:`drake_est.errors.DrakeEstError` (and missing files)
+are printed as one line on stderr with exit code 2, never as a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+from drake_est.errors import DrakeEstError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="drake-est",
+        description="System identification and estimation for robots, as Drake systems "
+        "(methods of Bagge Carlson 2018).",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    pkg = sys.modules[__name__]
+    for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        mod = importlib.import_module(f"{__name__}.{info.name}")
+        if hasattr(mod, "register"):
+            mod.register(sub)
+    return parser
+
+
+class _ArgumentParserExit2(argparse.ArgumentParser):
+    pass
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        rc = args.func(args)
+    except DrakeEstError as err:
+        print(f"drake-est {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except FileNotFoundError as err:
+        print(f"drake-est {args.command}: error: file not found: {err.filename or err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"drake-est {args.command}: interrupted", file=sys.stderr)
+        return 130
+    return int(rc or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

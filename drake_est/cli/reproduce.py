@@ -1,0 +1,55 @@
+"""``drake-est reproduce NAME``: rerun a thesis experiment, write PNGs and a JSON of numbers."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from drake_est.errors import DrakeEstError
+
+
+def register(sub):
+    p = sub.add_parser("reproduce", help="reproduce a thesis figure/table (writes PNGs + JSON)")
+    p.add_argument("name", nargs="?", help="experiment name; omit to list them")
+    p.add_argument("--out", default=None, help="output folder (default: ./reproduce-NAME)")
+    p.add_argument("--quick", action="store_true", help="smaller sizes for a fast look (numbers differ from the thesis setting)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--data", default=None, help="folder with the real data sets (real-* experiments; default ../shared/data)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from drake_est.reproduce import experiments
+
+    exps = experiments()
+    if not args.name:
+        print("Available experiments:")
+        for name in sorted(exps):
+            doc = (exps[name].__doc__ or "").strip().splitlines()
+            print(f"  {name:22s} {doc[0] if doc else ''}")
+        return 0
+    if args.name not in exps:
+        raise DrakeEstError(f"unknown experiment '{args.name}'; choose one of: {', '.join(sorted(exps))}")
+    out = Path(args.out or f"reproduce-{args.name}")
+    out.mkdir(parents=True, exist_ok=True)
+    kwargs = dict(out_dir=out, quick=args.quick, seed=args.seed)
+    if args.data is not None:
+        kwargs["data_dir"] = args.data
+    result = exps[args.name](**kwargs)
+    path = out / f"{args.name}.json"
+    path.write_text(json.dumps(result, indent=2, default=_jsonable))
+    print(f"wrote {path} and figures in {out}/")
+    return 0
+
+
+def _jsonable(x):
+    import numpy as np
+
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.bool_):
+        return bool(x)
+    if isinstance(x, Path):
+        return str(x)
+    raise TypeError(f"not JSON serializable: {type(x)}")
