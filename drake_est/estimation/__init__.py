@@ -1,0 +1,1 @@
+"""drake_est.estimation"""
