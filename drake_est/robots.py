@@ -38,6 +38,7 @@ class RobotMetadata:
     name: str
     joint_names: list
     gear_ratios: np.ndarray
+    rotor_inertias: np.ndarray
     motor_from_arm: np.ndarray  # q_motor = motor_from_arm @ q_arm (lower triangular, Eq. (9.10))
     coulomb: np.ndarray
     viscous: np.ndarray
@@ -69,7 +70,7 @@ def irb140_metadata() -> RobotMetadata:
     model = irb140()
     return RobotMetadata(
         name=d["name"], joint_names=list(d["joint_names"]), gear_ratios=np.array(d["gear_ratios"], float),
-        motor_from_arm=np.array(d["motor_from_arm"], float), coulomb=np.array(d["coulomb"], float),
+        rotor_inertias=np.array(d["rotor_inertias"], float), motor_from_arm=np.array(d["motor_from_arm"], float), coulomb=np.array(d["coulomb"], float),
         viscous=np.array(d["viscous"], float), position_limits=model.position_limits.copy(),
         velocity_limits=model.velocity_limits.copy(), flange_frame=d["flange_frame"],
         urdf=models_dir() / d["urdf"])
@@ -83,11 +84,12 @@ def _add_payload(plant: MultibodyPlant, model, flange_frame: str, mass: float, c
 
 
 def add_robot(builder: DiagramBuilder, urdf, time_step: float = 0.0, base_link: str | None = None,
-              payload: tuple | None = None, flange_frame: str | None = None):
+              payload: tuple | None = None, flange_frame: str | None = None, rotor: tuple | None = None):
     """Parse ``urdf`` into a MultibodyPlant in ``builder``, weld its base to the world and finalize.
 
     ``payload=(mass_kg, com_xyz_in_flange_m)`` welds an extra mass to ``flange_frame``
-    (used to simulate an unmodeled payload). Returns ``(plant, scene_graph, model_instance)``."""
+    (used to simulate an unmodeled payload). ``rotor=(gear_ratios, rotor_inertias)`` sets the
+    actuators' reflected rotor inertia g^2 J_r (added to the mass matrix by Drake). Returns ``(plant, scene_graph, model_instance)``."""
     urdf = Path(urdf)
     if not urdf.exists():
         raise DataError(f"robot model not found: {urdf}")
@@ -100,6 +102,13 @@ def add_robot(builder: DiagramBuilder, urdf, time_step: float = 0.0, base_link: 
     plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base_link, model))
     if payload is not None:
         _add_payload(plant, model, flange_frame or "tool0", payload[0], payload[1])
+    if rotor is not None:
+        gear, inertia = rotor
+        acts = [i for i in plant.GetJointActuatorIndices() if plant.get_joint_actuator(i).model_instance() == model]
+        for k, idx in enumerate(acts):
+            act = plant.get_mutable_joint_actuator(idx)
+            act.set_default_gear_ratio(float(gear[k]))
+            act.set_default_rotor_inertia(float(inertia[k]))
     plant.Finalize()
     return plant, scene_graph, model
 
@@ -113,6 +122,12 @@ def _root_link(plant, model) -> str:
     return roots[0]
 
 
+def _irb140_rotor():
+    with open(models_dir() / "irb140.toml", "rb") as f:
+        d = tomllib.load(f)
+    return np.array(d["gear_ratios"], float), np.array(d["rotor_inertias"], float)
+
+
 def add_irb140(builder: DiagramBuilder | None = None, time_step: float = 0.0, payload: tuple | None = None):
     """The IRB 140 plant welded to the world in ``builder`` (a new one if None).
 
@@ -120,7 +135,7 @@ def add_irb140(builder: DiagramBuilder | None = None, time_step: float = 0.0, pa
     each (input port ``plant.get_actuation_input_port()`` in arm-side N m)."""
     builder = builder or DiagramBuilder()
     plant, sg, model = add_robot(builder, models_dir() / "irb140.urdf", time_step=time_step, base_link="base_link",
-                                 payload=payload, flange_frame="tool0")
+                                 payload=payload, flange_frame="tool0", rotor=_irb140_rotor())
     return builder, plant, sg, model
 
 
@@ -136,9 +151,9 @@ class RobotModel:
     """
 
     def __init__(self, urdf, base_link: str | None = None, flange_frame: str | None = None,
-                 payload: tuple | None = None):
+                 payload: tuple | None = None, rotor: tuple | None = None):
         builder = DiagramBuilder()
-        self.plant, _, self.model = add_robot(builder, urdf, 0.0, base_link, payload, flange_frame)
+        self.plant, _, self.model = add_robot(builder, urdf, 0.0, base_link, payload, flange_frame, rotor)
         self.diagram = builder.Build()
         self._dctx = self.diagram.CreateDefaultContext()
         self.context = self.plant.GetMyMutableContextFromRoot(self._dctx)
@@ -159,7 +174,8 @@ class RobotModel:
 
     @classmethod
     def irb140(cls, payload: tuple | None = None) -> "RobotModel":
-        return cls(models_dir() / "irb140.urdf", base_link="base_link", flange_frame="tool0", payload=payload)
+        return cls(models_dir() / "irb140.urdf", base_link="base_link", flange_frame="tool0", payload=payload,
+                   rotor=_irb140_rotor())
 
     def _check(self, q, name="q"):
         q = np.asarray(q, dtype=float).ravel()
