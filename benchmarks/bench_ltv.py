@@ -1,0 +1,144 @@
+"""Benchmark of the LTV identification solvers (thesis Ch. 7) -- prints the ratios measured in one run.
+
+Part 1, (7.3) at T = 4000, n = 2, m = 1 (K = 6 parameters per step, 24,000 unknowns):
+  * Kalman smoother, banded/cyclic-reduction form (posterior mean AND covariance of every k_t),
+  * the same smoother as a per-step Kalman filter + RTS loop,
+  * the QP built and solved in Drake's MathematicalProgram (OSQP and Clarabel),
+  * a sparse direct solve of the normal equations with scipy (build + solve, and solve alone),
+  * the dense closed form (7.4) at T = 200 only (O((TK)^3)).
+Part 2, group lasso (7.6) at T = 2000: ADMM (default tolerances) and linearized ADMM vs Clarabel
+through Drake (build and solve timed separately); accuracy is the relative cost difference.
+
+Times are the best of ``--repeat`` runs (the machine is shared; best-of is the least noisy).
+Usage: python benchmarks/bench_ltv.py [--repeat 3] [--T 4000] [--T-lasso 2000]
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+
+def _best(f, repeat):
+    out, best = None, np.inf
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = f()
+        best = min(best, time.perf_counter() - t)
+    return best, out
+
+
+def _sparse_normal_equations(phi, Y, lam):
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve
+
+    T, p = phi.shape
+    n = Y.shape[1]
+    K = n * p
+    rows = np.repeat(np.arange(T * n), p)
+    cols = (np.arange(T)[:, None, None] * K + np.arange(n)[None, :, None] * p + np.arange(p)[None, None, :]).reshape(-1)
+    vals = np.repeat(phi[:, None, :], n, axis=1).reshape(-1)
+    A = sp.csr_matrix((vals, (rows, cols)), shape=(T * n, T * K))
+    D = sp.kron(sp.diags([-np.ones(T - 1), np.ones(T - 1)], [0, 1], shape=(T - 1, T)), sp.eye(K), format="csr")
+    H = (A.T @ A + lam ** 2 * (D.T @ D)).tocsc()
+    b = A.T @ Y.reshape(-1)
+    t = time.perf_counter()
+    k = spsolve(H, b)
+    return k.reshape(T, n, p), time.perf_counter() - t
+
+
+def run(repeat=3, T=4000, T_lasso=2000, lam=10.0, lam_lasso=20.0, seed=0, verbose=True):
+    from drake_est.identification import ltv
+
+    res = {}
+    pr = print if verbose else (lambda *a, **k: None)
+    # ---------------------------------------------------------------- part 1: (7.3)
+    x, u, y, A, B = ltv.jump_system(T=T, t_switch=T // 2, seed=seed)
+    X = x[:-1]
+    phi = np.hstack([X, u])
+    t_band, r = _best(lambda: ltv.ltv_smoother(X, u, lam, y=y), repeat)
+    t_band_mean, _ = _best(lambda: ltv.ltv_smoother(X, u, lam, y=y, check=False), repeat)
+    t_rts, rr = _best(lambda: ltv.ltv_smoother(X, u, lam, y=y, method="rts"), 1)
+    # QP timings with the solvers' default tolerances (favours the QP); accuracy against tight Clarabel
+    t_osqp, (Ao, Bo) = _best(lambda: ltv.ltv_qp_reference(X, u, lam, y=y, solver="osqp", tight=False), 1)
+    t_clar, _ = _best(lambda: ltv.ltv_qp_reference(X, u, lam, y=y, solver="clarabel", tight=False), 1)
+    Ac, Bc = ltv.ltv_qp_reference(X, u, lam, y=y, solver="clarabel", tight=True)
+    t_sp_total, (ksp, t_sp_solve) = _best(lambda: _sparse_normal_equations(phi, y, lam), repeat)
+    ref = np.concatenate([Ac, Bc], axis=2)
+    est = np.concatenate([r.A, r.B], axis=2)
+    err = float(np.max(np.abs(est - ref)) / np.max(np.abs(ref)))
+    err_rts = float(np.max(np.abs(np.concatenate([rr.A, rr.B], axis=2) - ref)) / np.max(np.abs(ref)))
+    err_sp = float(np.max(np.abs(ksp - est)) / np.max(np.abs(est)))
+    Ts = 200
+    phs = phi[:Ts]
+    t_dense, _ = _best(lambda: _dense_closed_form(phs, y[:Ts], lam), 1)
+    t_band_small, _ = _best(lambda: ltv.ltv_smoother(X[:Ts], u[:Ts], lam, y=y[:Ts]), repeat)
+    res["smoother"] = dict(T=T, n=2, m=1, lam=lam, t_kalman_banded_s=t_band, t_kalman_rts_loop_s=t_rts,
+                           t_mathprog_osqp_build_solve_s=t_osqp, t_mathprog_clarabel_build_solve_s=t_clar,
+                           t_scipy_sparse_build_solve_s=t_sp_total, t_scipy_sparse_solve_only_s=t_sp_solve,
+                           rel_err_vs_clarabel=err, rel_err_rts_vs_clarabel=err_rts, rel_diff_sparse=err_sp,
+                           ratio_osqp=t_osqp / t_band, ratio_clarabel=t_clar / t_band,
+                           ratio_sparse_total=t_sp_total / t_band, ratio_sparse_solve=t_sp_solve / t_band,
+                           ratio_rts=t_rts / t_band, T_dense=Ts, t_dense_closed_form_s=t_dense,
+                           t_kalman_banded_small_s=t_band_small)
+    s = res["smoother"]
+    pr(f"(7.3) T={T}, n=2, m=1 ({T * 6} unknowns), lambda={lam}; best of {repeat}")
+    pr(f"  Kalman smoother, banded (mean+cov) {t_band * 1e3:8.1f} ms   rel. err vs Clarabel {err:.1e}")
+    pr(f"  Kalman filter+RTS, per-step loop   {t_rts * 1e3:8.1f} ms   ({s['ratio_rts']:.1f}x slower; rel. err {err_rts:.1e})")
+    pr(f"  MathematicalProgram + OSQP         {t_osqp * 1e3:8.1f} ms   ratio {s['ratio_osqp']:.1f}x")
+    pr(f"  MathematicalProgram + Clarabel     {t_clar * 1e3:8.1f} ms   ratio {s['ratio_clarabel']:.1f}x")
+    pr(f"  scipy sparse normal eq. build+solve{t_sp_total * 1e3:8.1f} ms   ratio {s['ratio_sparse_total']:.1f}x"
+       f"  (solve only {t_sp_solve * 1e3:.1f} ms, ratio {s['ratio_sparse_solve']:.1f}x)")
+    pr(f"  dense closed form (7.4), T={Ts}      {t_dense * 1e3:8.1f} ms   (banded at T={Ts}: {t_band_small * 1e3:.1f} ms)")
+    # ---------------------------------------------------------------- part 2: (7.6)
+    x, u, y, A, B = ltv.jump_system(T=T_lasso, t_switch=T_lasso // 2, seed=seed)
+    X = x[:-1]
+    from drake_est.identification.ltv import _as_state_space, _mp_program, _mp_solve, _poly, _group_lasso_cost
+    phi2, Yn, n, m, _ = _as_state_space(X, u, y)
+    Phi, Y = phi2[:, None, :], Yn[:, None, :]
+    c = _poly(1)
+    tb0 = time.perf_counter()
+    prog, kv = _mp_program(Phi, Y, lam_lasso, c, "lasso")
+    t_build = time.perf_counter() - tb0
+    t_solve, _ = _best(lambda: _mp_solve(prog, kv, "clarabel", T_lasso, 3, 2, tight=False), 1)
+    kk, _ = _mp_solve(prog, kv, "clarabel", T_lasso, 3, 2, tight=True)
+    G = np.einsum("tmi,tmj->tij", Phi, Phi)
+    Bt = np.einsum("tmi,tmr->tir", Phi, Y)
+    cref = _group_lasso_cost(G, Bt, float(np.sum(Y * Y)), kk, c, lam_lasso)
+    t_admm, g = _best(lambda: ltv.ltv_group_lasso(X, u, lam_lasso, y=y), repeat)
+    t_lin, gl = _best(lambda: ltv.ltv_group_lasso(X, u, lam_lasso, y=y, linearized=True, max_iter=2000,
+                                                  eps_abs=0, eps_rel=0), 1)
+    res["group_lasso"] = dict(T=T_lasso, lam=lam_lasso, t_clarabel_solve_s=t_solve, t_clarabel_build_s=t_build,
+                              t_admm_s=t_admm, admm_iterations=g.info["iterations"],
+                              admm_rel_cost_err=(g.cost - cref) / cref, ratio_admm_vs_clarabel_solve=t_solve / t_admm,
+                              t_linearized_admm_2000_iter_s=t_lin, linearized_rel_cost_err=(gl.cost - cref) / cref,
+                              admm_change_times=g.change_times[:10])
+    q = res["group_lasso"]
+    pr(f"(7.6) group lasso T={T_lasso}, lambda={lam_lasso}")
+    pr(f"  Clarabel through Drake: build {t_build * 1e3:.0f} ms, solve {t_solve * 1e3:.0f} ms")
+    pr(f"  ADMM (banded k-update)  {t_admm * 1e3:8.1f} ms, {g.info['iterations']} it, rel. cost err {q['admm_rel_cost_err']:.1e}"
+       f"   ratio vs Clarabel solve {q['ratio_admm_vs_clarabel_solve']:.1f}x")
+    pr(f"  linearized ADMM 2000 it {t_lin * 1e3:8.1f} ms, rel. cost err {q['linearized_rel_cost_err']:.1e}")
+    return res
+
+
+def _dense_closed_form(phi, Y, lam):
+    """(7.4) with dense matrices (reported for small T only)."""
+    T, p = phi.shape
+    n = Y.shape[1]
+    K = n * p
+    A = np.zeros((T * n, T * K))
+    for t in range(T):
+        A[t * n:(t + 1) * n, t * K:(t + 1) * K] = np.kron(np.eye(n), phi[t])
+    D = np.kron(np.diff(np.eye(T), axis=0), np.eye(K))
+    return np.linalg.solve(A.T @ A + lam ** 2 * D.T @ D, A.T @ Y.reshape(-1))
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--T", type=int, default=4000)
+    ap.add_argument("--T-lasso", type=int, default=2000)
+    a = ap.parse_args()
+    run(a.repeat, a.T, a.T_lasso)
