@@ -233,3 +233,46 @@ def simulate_ft(poses, R, mass, com, force_bias=(0, 0, 0), torque_bias=(0, 0, 0)
     W[:, :3] += noise_force * rng.standard_normal((len(W), 3))
     W[:, 3:] += noise_torque * rng.standard_normal((len(W), 3))
     return W
+
+
+def calibrate_ft_unknown_gravity(poses, wrench, bias: bool = True, n_iter: int = 30, g: float = 9.81,
+                                 n_grid: int = 84) -> tuple[FTCalibration, np.ndarray]:
+    """F/T calibration when the gravity direction in the robot base frame is unknown (tilted or
+    unknown base mounting, e.g. the arms of a YuMi on its torso).
+
+    The force relation f = m R R_RB^TF^T g + b is bilinear in (mR, g): a grid of directions picks the
+    start, then the relaxation of :func:`calibrate_ft` (g fixed) and a least-squares update of g (R, m,
+    b fixed, |g| kept) alternate.  g is identifiable when the first joint(s) rotate the flange about an
+    axis not parallel to gravity.  Returns (calibration, gravity vector in the base frame).
+    """
+    P, W = _check_inputs(poses, wrench)
+    Rf = P[:, :3, :3]
+    # Fibonacci sphere of start directions
+    k = np.arange(n_grid) + 0.5
+    th = np.arccos(1 - 2 * k / n_grid)
+    ph = np.pi * (1 + 5**0.5) * k
+    dirs = np.column_stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+    best = None
+    Wf = W[:, :3]  # the gravity direction comes from the forces; torques only enter the final fit
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for d in dirs:
+            try:
+                r = calibrate_ft(P, Wf, bias=bias, gravity=g * d, warn_condition=np.inf)
+            except IdentifiabilityError:
+                continue
+            rms = float(np.sqrt(np.mean(r.residuals[:, :3] ** 2)))
+            if best is None or rms < best[0]:
+                best = (rms, g * d, r)
+        if best is None:
+            raise IdentifiabilityError("no gravity direction makes the poses identifiable; collect poses with "
+                                       "more varied tool orientations")
+        _, gv, r = best
+        for _ in range(n_iter):
+            A = np.einsum("ij,njk->nik", r.mass * r.R, np.transpose(Rf, (0, 2, 1))).reshape(-1, 3)
+            y = (Wf - r.force_bias).reshape(-1)
+            gv, _ = lstsq(A, y)
+            gv = g * gv / np.linalg.norm(gv)
+            r = calibrate_ft(P, Wf, bias=bias, gravity=gv, warn_condition=np.inf)
+        r = calibrate_ft(P, W, bias=bias, gravity=gv, warn_condition=np.inf)
+    return r, gv
