@@ -48,8 +48,8 @@ class ScheduleBasis:
             if not (self.lo < 0.0 < self.hi):
                 raise IdentifiabilityError(
                     f"sign_split schedule basis needs both signs of the schedule, range is [{lo:.3g}, {hi:.3g}]")
-            n_pos = n_basis // 2
-            n_neg = n_basis - n_pos
+            n_pos = n_basis - n_basis // 2
+            n_neg = n_basis // 2
             self._pos = BasisFunctionExpansion.uniform(0.0, self.hi, n_pos, width_factor=width_factor,
                                                        normalize=True) if n_pos > 1 else None
             self._neg = BasisFunctionExpansion.uniform(self.lo, 0.0, n_neg, width_factor=width_factor,
