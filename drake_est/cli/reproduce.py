@@ -1,10 +1,10 @@
 """``drake-est reproduce NAME``: rerun a thesis experiment, write PNGs and a JSON of numbers."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from drake_est.errors import DrakeEstError
+from drake_est.jsonutil import dump_json
 
 
 def register(sub):
@@ -36,20 +36,7 @@ def run(args) -> int:
         kwargs["data_dir"] = args.data
     result = exps[args.name](**kwargs)
     path = out / f"{args.name}.json"
-    path.write_text(json.dumps(result, indent=2, default=_jsonable))
+    dump_json(result, path)
     print(f"wrote {path} and figures in {out}/")
     return 0
 
-
-def _jsonable(x):
-    import numpy as np
-
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    if isinstance(x, np.bool_):
-        return bool(x)
-    if isinstance(x, Path):
-        return str(x)
-    raise TypeError(f"not JSON serializable: {type(x)}")

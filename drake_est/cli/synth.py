@@ -1,12 +1,10 @@
 """``drake-est synth``: write a simulated IRB 140 log with a hidden effect (ground truth beside it)."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-import numpy as np
-
 from drake_est.errors import DrakeEstError
+from drake_est.jsonutil import dump_json
 
 
 def register(sub):
@@ -51,15 +49,8 @@ def run(args) -> int:
     out = save_log(log, args.out)
     tpath = Path(str(out) + ".truth.json")
     keep = {k: v for k, v in truth.items() if k not in ("friction_torque", "q_true", "dq_true", "truth_model")}
-    tpath.write_text(json.dumps(keep, indent=2, default=_jsonable))
+    dump_json(keep, tpath)
     print(f"wrote {out} ({log.n_samples} samples, {log.duration:.0f} s, joints {truth['joints']} moving, "
           f"effects: {', '.join(truth['effects']) or 'none'}); ground truth in {tpath}")
     return 0
 
-
-def _jsonable(x):
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    raise TypeError(type(x))
