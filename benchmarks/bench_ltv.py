@@ -6,11 +6,14 @@ Part 1, (7.3) at T = 4000, n = 2, m = 1 (K = 6 parameters per step, 24,000 unkno
   * the QP built and solved in Drake's MathematicalProgram (OSQP and Clarabel),
   * a sparse direct solve of the normal equations with scipy (build + solve, and solve alone),
   * the dense closed form (7.4) at T = 200 only (O((TK)^3)).
-Part 2, group lasso (7.6) at T = 2000: ADMM (default tolerances) and linearized ADMM vs Clarabel
-through Drake (build and solve timed separately); accuracy is the relative cost difference.
+Part 2, group lasso (7.6) at T = 2000: the default solver of ``ltv_group_lasso`` (working set +
+primal-dual Newton), plain ADMM and linearized ADMM vs Clarabel through Drake (build and solve timed
+separately); accuracy is the relative cost difference to Clarabel with tight tolerances.  Also a
+case with dense changes (Sec. 7.7 drift system), where ``ltv_group_lasso`` falls back to ADMM, and a
+long (T = 20,000) friction-style log.
 
 Times are the best of ``--repeat`` runs (the machine is shared; best-of is the least noisy).
-Usage: python benchmarks/bench_ltv.py [--repeat 3] [--T 4000] [--T-lasso 2000]
+Usage: python benchmarks/bench_ltv.py [--repeat 3] [--T 4000] [--T-lasso 2000] [--lasso-only]
 """
 from __future__ import annotations
 
@@ -92,35 +95,123 @@ def run(repeat=3, T=4000, T_lasso=2000, lam=10.0, lam_lasso=20.0, seed=0, verbos
        f"  (solve only {t_sp_solve * 1e3:.1f} ms, ratio {s['ratio_sparse_solve']:.1f}x)")
     pr(f"  dense closed form (7.4), T={Ts}      {t_dense * 1e3:8.1f} ms   (banded at T={Ts}: {t_band_small * 1e3:.1f} ms)")
     # ---------------------------------------------------------------- part 2: (7.6)
-    x, u, y, A, B = ltv.jump_system(T=T_lasso, t_switch=T_lasso // 2, seed=seed)
+    res["group_lasso"] = group_lasso(repeat=repeat, T=T_lasso, lam=lam_lasso, seed=seed, verbose=verbose)
+    res["group_lasso_dense"] = group_lasso_dense(repeat=repeat, T=T_lasso, seed=seed, verbose=verbose)
+    res["group_lasso_long"] = group_lasso_long(repeat=repeat, seed=seed, verbose=verbose)
+    return res
+
+
+def group_lasso(repeat=3, T=2000, lam=20.0, seed=0, verbose=True):
+    """(7.6) on the Sec. 7.6 jump system: the default solver of ``ltv_group_lasso`` (working set +
+    primal-dual Newton, duality-gap certificate), plain ADMM and linearized ADMM vs Clarabel through
+    Drake, all in this one run.  Clarabel: program build and solve timed separately (solve: best of
+    ``repeat``, default tolerances); the reference optimum is Clarabel with tight tolerances."""
+    from drake_est.identification import ltv
+    from drake_est.identification.ltv import (_admm, _as_state_space, _group_lasso_cost, _mp_program, _mp_solve,
+                                              _poly)
+
+    pr = print if verbose else (lambda *a, **k: None)
+    x, u, y, A, B = ltv.jump_system(T=T, t_switch=T // 2, seed=seed)
     X = x[:-1]
-    from drake_est.identification.ltv import _as_state_space, _mp_program, _mp_solve, _poly, _group_lasso_cost
     phi2, Yn, n, m, _ = _as_state_space(X, u, y)
     Phi, Y = phi2[:, None, :], Yn[:, None, :]
+    p, r = phi2.shape[1], Yn.shape[1]
     c = _poly(1)
     tb0 = time.perf_counter()
-    prog, kv = _mp_program(Phi, Y, lam_lasso, c, "lasso")
+    prog, kv = _mp_program(Phi, Y, lam, c, "lasso")
     t_build = time.perf_counter() - tb0
-    t_solve, _ = _best(lambda: _mp_solve(prog, kv, "clarabel", T_lasso, 3, 2, tight=False), 1)
-    kk, _ = _mp_solve(prog, kv, "clarabel", T_lasso, 3, 2, tight=True)
+    t_solve, (kd, _) = _best(lambda: _mp_solve(prog, kv, "clarabel", T, p, r, tight=False), repeat)
+    kk, _ = _mp_solve(prog, kv, "clarabel", T, p, r, tight=True)
     G = np.einsum("tmi,tmj->tij", Phi, Phi)
     Bt = np.einsum("tmi,tmr->tir", Phi, Y)
-    cref = _group_lasso_cost(G, Bt, float(np.sum(Y * Y)), kk, c, lam_lasso)
-    t_admm, g = _best(lambda: ltv.ltv_group_lasso(X, u, lam_lasso, y=y), repeat)
-    t_lin, gl = _best(lambda: ltv.ltv_group_lasso(X, u, lam_lasso, y=y, linearized=True, max_iter=2000,
+    yy = float(np.sum(Y * Y))
+    cref = _group_lasso_cost(G, Bt, yy, kk, c, lam)
+    c_default = _group_lasso_cost(G, Bt, yy, kd, c, lam)
+    t_new, g = _best(lambda: ltv.ltv_group_lasso(X, u, lam, y=y), repeat)
+    t_admm, (ka, _, it_admm, _) = _best(lambda: _admm(G, Bt, yy, lam, c, eps_abs=1e-5, eps_rel=1e-4), repeat)
+    t_lin, gl = _best(lambda: ltv.ltv_group_lasso(X, u, lam, y=y, linearized=True, max_iter=2000,
                                                   eps_abs=0, eps_rel=0), 1)
-    res["group_lasso"] = dict(T=T_lasso, lam=lam_lasso, t_clarabel_solve_s=t_solve, t_clarabel_build_s=t_build,
-                              t_admm_s=t_admm, admm_iterations=g.info["iterations"],
-                              admm_rel_cost_err=(g.cost - cref) / cref, ratio_admm_vs_clarabel_solve=t_solve / t_admm,
-                              t_linearized_admm_2000_iter_s=t_lin, linearized_rel_cost_err=(gl.cost - cref) / cref,
-                              admm_change_times=g.change_times[:10])
-    q = res["group_lasso"]
-    pr(f"(7.6) group lasso T={T_lasso}, lambda={lam_lasso}")
-    pr(f"  Clarabel through Drake: build {t_build * 1e3:.0f} ms, solve {t_solve * 1e3:.0f} ms")
-    pr(f"  ADMM (banded k-update)  {t_admm * 1e3:8.1f} ms, {g.info['iterations']} it, rel. cost err {q['admm_rel_cost_err']:.1e}"
+    nchg = lambda k: int(np.sum(np.abs(np.diff(k.reshape(T, -1), axis=0)).max(axis=1) > 1e-6))
+    out = dict(T=T, lam=lam, t_clarabel_build_s=t_build, t_clarabel_solve_s=t_solve,
+               clarabel_default_rel_cost_err=(c_default - cref) / cref,
+               t_solver_s=t_new, solver_newton_steps=g.info["iterations"], solver_converged=g.info["converged"],
+               solver_rel_cost_err=(g.cost - cref) / cref,
+               ratio_vs_clarabel_solve=t_solve / t_new, ratio_vs_clarabel_build_solve=(t_build + t_solve) / t_new,
+               solver_changes=nchg(np.concatenate([g.A, g.B], axis=2)), clarabel_changes=nchg(kk),
+               t_admm_s=t_admm, admm_iterations=it_admm,
+               admm_rel_cost_err=(_group_lasso_cost(G, Bt, yy, ka, c, lam) - cref) / cref,
+               ratio_admm_vs_clarabel_solve=t_solve / t_admm,
+               t_linearized_admm_2000_iter_s=t_lin, linearized_rel_cost_err=(gl.cost - cref) / cref,
+               change_times=g.change_times[:10])
+    q = out
+    pr(f"(7.6) group lasso T={T}, lambda={lam}, {T * p * r} unknowns; best of {repeat}")
+    pr(f"  Clarabel through Drake: build {t_build * 1e3:.0f} ms, solve {t_solve * 1e3:.0f} ms "
+       f"(default tolerances: rel. cost err {q['clarabel_default_rel_cost_err']:.1e}; {q['clarabel_changes']} changes)")
+    pr(f"  ltv_group_lasso (working set + Newton) {t_new * 1e3:7.1f} ms, {q['solver_newton_steps']} Newton steps, "
+       f"rel. cost err {q['solver_rel_cost_err']:.1e}, {q['solver_changes']} changes")
+    pr(f"      ratio vs Clarabel solve {q['ratio_vs_clarabel_solve']:.1f}x, vs build+solve "
+       f"{q['ratio_vs_clarabel_build_solve']:.1f}x")
+    pr(f"  ADMM (banded k-update)  {t_admm * 1e3:8.1f} ms, {it_admm} it, rel. cost err {q['admm_rel_cost_err']:.1e}"
        f"   ratio vs Clarabel solve {q['ratio_admm_vs_clarabel_solve']:.1f}x")
     pr(f"  linearized ADMM 2000 it {t_lin * 1e3:8.1f} ms, rel. cost err {q['linearized_rel_cost_err']:.1e}")
-    return res
+    return out
+
+
+def group_lasso_dense(repeat=3, T=2000, lam=0.02, seed=0, verbose=True):
+    """(7.6) where the solution changes almost everywhere (the drifting system of Sec. 7.7, n = 3, m = 2,
+    15 parameters per step): the working set gives up and ``ltv_group_lasso`` falls back to ADMM."""
+    from drake_est.identification import ltv
+    from drake_est.identification.ltv import _as_state_space, _group_lasso_cost, _mp_program, _mp_solve, _poly
+
+    pr = print if verbose else (lambda *a, **k: None)
+    x, u, A, B = ltv.drift_system(T=T, seed=seed)
+    X, y = x[:-1], x[1:]
+    phi, Yn, n, m, _ = _as_state_space(X, u, y)
+    Phi, Y = phi[:, None, :], Yn[:, None, :]
+    p, r = phi.shape[1], Yn.shape[1]
+    c = _poly(1)
+    tb0 = time.perf_counter()
+    prog, kv = _mp_program(Phi, Y, lam, c, "lasso")
+    t_build = time.perf_counter() - tb0
+    t_solve, _ = _best(lambda: _mp_solve(prog, kv, "clarabel", T, p, r, tight=False), repeat)
+    kk, _ = _mp_solve(prog, kv, "clarabel", T, p, r, tight=True)
+    G = np.einsum("tmi,tmj->tij", Phi, Phi)
+    Bt = np.einsum("tmi,tmr->tir", Phi, Y)
+    cref = _group_lasso_cost(G, Bt, float(np.sum(Y * Y)), kk, c, lam)
+    t_new, g = _best(lambda: ltv.ltv_group_lasso(X, u, lam, y=y), repeat)
+    dk = g.info["dk"]
+    nchg = int(np.sum(np.any(dk.reshape(dk.shape[0], -1) != 0, axis=1)))      # nonzero split variables
+    out = dict(T=T, lam=lam, t_clarabel_build_s=t_build, t_clarabel_solve_s=t_solve, t_solver_s=t_new,
+               solver_rel_cost_err=(g.cost - cref) / cref, solver_nonzero_differences=nchg,
+               ratio_vs_clarabel_solve=t_solve / t_new)
+    pr(f"(7.6) dense changes: drift system T={T}, n=3, m=2, lambda={lam} ({T * p * r} unknowns)")
+    pr(f"  Clarabel through Drake: build {t_build * 1e3:.0f} ms, solve {t_solve * 1e3:.0f} ms")
+    pr(f"  ltv_group_lasso (ADMM fallback) {t_new * 1e3:7.1f} ms, rel. cost err {out['solver_rel_cost_err']:.1e}, "
+       f"{nchg} of {T - 1} differences nonzero (split variable); ratio vs Clarabel solve {out['ratio_vs_clarabel_solve']:.1f}x")
+    return out
+
+
+def group_lasso_long(repeat=3, T=20000, lam=5.0, seed=0, verbose=True):
+    """A long friction-style log (y_t = [v, sign(v), 1] k_t + e, one abrupt change at t = 12345):
+    ``tv_regression_group_lasso`` at full resolution (block = 1) and with the default block."""
+    from drake_est.identification import ltv
+
+    pr = print if verbose else (lambda *a, **k: None)
+    rng = np.random.default_rng(seed)
+    v = np.sin(np.arange(T) * 2 * np.pi / 5000.0) + 0.2
+    Phi = np.column_stack([v, np.sign(v), np.ones(T)])
+    k = np.where(np.arange(T)[:, None] < 12345, [0.5, 1.0, 0.0], [0.5, 1.5, 0.1])
+    y = np.sum(Phi * k, 1) + 0.05 * rng.standard_normal(T)
+    out = {}
+    pr(f"(7.6) long log T={T}, p=3, lambda={lam}; best of {repeat}")
+    for block in (1, None):
+        t, g = _best(lambda: ltv.tv_regression_group_lasso(Phi, y, lam, block=block), repeat)
+        b = g.info["block"]
+        out[f"block_{b}"] = dict(t_s=t, steps=g.iterations, converged=g.converged,
+                                 change=ltv.change_points(g.k, n=1)[0])
+        pr(f"  block={b:3d}: {t * 1e3:7.1f} ms, {g.iterations} Newton steps, converged {g.converged}, "
+           f"change found at t = {out[f'block_{b}']['change']} (true 12345)")
+    return out
 
 
 def _dense_closed_form(phi, Y, lam):
@@ -140,5 +231,11 @@ if __name__ == "__main__":
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--T", type=int, default=4000)
     ap.add_argument("--T-lasso", type=int, default=2000)
+    ap.add_argument("--lasso-only", action="store_true", help="run part 2 (group lasso) only")
     a = ap.parse_args()
-    run(a.repeat, a.T, a.T_lasso)
+    if a.lasso_only:
+        group_lasso(a.repeat, a.T_lasso)
+        group_lasso_dense(a.repeat, a.T_lasso)
+        group_lasso_long(a.repeat)
+    else:
+        run(a.repeat, a.T, a.T_lasso)
