@@ -10,12 +10,18 @@ are printed as one line on stderr with exit code 2, never as a traceback.
 """
 from __future__ import annotations
 
-import argparse
-import importlib
-import pkgutil
-import sys
+import os
 
-from drake_est.errors import DrakeEstError
+# Small per-step linear algebra runs several times faster single-threaded on shared 2-core machines
+# (shared/drake_notes.md); set before numpy is imported. A user's own setting wins.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import importlib  # noqa: E402
+import pkgutil  # noqa: E402
+import sys  # noqa: E402
+
+from drake_est.errors import DrakeEstError  # noqa: E402
 
 
 def build_parser() -> argparse.ArgumentParser:

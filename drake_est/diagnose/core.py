@@ -1,0 +1,310 @@
+"""The iterative diagnosis: nominal model -> candidate extensions -> held-out test -> repeat.
+
+1. :func:`~drake_est.diagnose.nominal.prepare` selects samples (9.9), screens outliers and splits
+   the log into alternating time blocks (even: training, odd: validation).
+2. The nominal model (rigid body + symmetric Coulomb/viscous (9.2)) is fitted on the training part.
+3. For every excited joint, every detector of :mod:`~drake_est.diagnose.detectors` proposes an
+   extension from the *training* residual.  Each is refitted jointly with the current model on the
+   training part and judged on the validation part by an F-test on the held-out residual sums of
+   squares, F = ((RSS0 - RSS1) / d) / (RSS1 / (n - d)), together with a minimum relative RMSE
+   reduction.  Among the significant ones the one with the largest held-out log-likelihood gain
+   minus an AIC penalty, n log(RSS0 / RSS1) - 2 d, is accepted.
+4. Repeat with the remaining candidates on the remaining residual until none is significant.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.stats
+
+from drake_est.diagnose import detectors as det
+from drake_est.diagnose.nominal import OUTLIER_MAD, block_index, nominal_columns, nominal_names, prepare
+from drake_est.metrics import metrics_table
+
+ALPHA = 1e-4          # significance level of the held-out F-test
+MIN_GAIN = 0.02       # minimum relative reduction of the held-out RMSE of the affected joint(s)
+MAX_FINDINGS = 6
+
+
+@dataclass
+class Fit:
+    pred: dict            # joint -> prediction of y at the joint's used rows
+    coef: dict            # joint -> own coefficients (nominal first, then own extensions in order)
+    shared: dict          # effect -> shared coefficients
+    rss_val: dict         # joint -> validation RSS
+    n_params: int
+
+
+N_NOMINAL = 2          # nominal columns per joint [qd, sign(qd)], never penalized
+RIDGE = 1e-4           # relative ridge on extension columns (times each column's energy)
+
+
+def _ridge_lstsq(A, y, penalize):
+    """Least squares with a small relative ridge on the extension columns (Eq. (6.8)).
+
+    ``penalize``: number of leading unpenalized columns, or a boolean mask of penalized columns.
+    The penalty RIDGE * ||A_k||^2 on column k keeps near-collinear extensions (e.g. periodic
+    columns over few discrete speed levels) from trading huge coefficients against the nominal
+    Coulomb/viscous ones; it is solved as an augmented least-squares problem (no inverse)."""
+    p = A.shape[1]
+    if isinstance(penalize, (int, np.integer)):
+        mask = np.arange(p) >= penalize
+    else:
+        mask = np.asarray(penalize, bool)
+    if not mask.any():
+        return np.linalg.lstsq(A, y, rcond=None)[0]
+    w = np.sqrt(RIDGE * np.maximum(np.sum(A[:, mask] ** 2, axis=0), 1e-300))
+    R = np.zeros((int(mask.sum()), p))
+    R[np.arange(int(mask.sum())), np.flatnonzero(mask)] = w
+    return np.linalg.lstsq(np.vstack([A, R]), np.concatenate([y, np.zeros(R.shape[0])]), rcond=None)[0]
+
+
+class Model:
+    """Nominal model plus accepted extensions, fitted by (weighted, stacked) least squares."""
+
+    def __init__(self, prep, exts=()):
+        self.prep = prep
+        self.exts = list(exts)
+
+    def own(self, j):
+        return [e for e in self.exts if not e.shared and j in e.cols]
+
+    def shared_exts(self):
+        return [e for e in self.exts if e.shared]
+
+    def design(self, j, extra=None):
+        jd = self.prep.joints[j]
+        blocks = [nominal_columns(jd, self.prep.robot_kind)] + [e.cols[j] for e in self.own(j)]
+        if extra is not None:
+            blocks.append(extra)
+        return np.hstack(blocks)
+
+    def fit(self, sigma=None) -> Fit:
+        prep = self.prep
+        shared = self.shared_exts()
+        pred, coef, rss = {}, {}, {}
+        n_params = 0
+        shared_coef = {}
+        if not shared:
+            for j, jd in prep.joints.items():
+                X = self.design(j)
+                c = _ridge_lstsq(X[jd.train], jd.y[jd.train], N_NOMINAL)
+                coef[j] = c
+                pred[j] = X @ c
+                n_params += X.shape[1]
+        else:
+            js = list(prep.joints)
+            own = {j: self.design(j) for j in js}
+            S = [np.hstack([e.cols[j] for e in shared]) for j in js]
+            ds = S[0].shape[1]
+            offs = np.cumsum([0] + [own[j].shape[1] for j in js])
+            P = int(offs[-1]) + ds
+            rows_A, rows_y = [], []
+            for k, j in enumerate(js):
+                jd = prep.joints[j]
+                w = 1.0 / (sigma[j] if sigma else 1.0)
+                A = np.zeros((int(jd.train.sum()), P))
+                A[:, offs[k]:offs[k + 1]] = own[j][jd.train]
+                A[:, offs[-1]:] = S[k][jd.train]
+                rows_A.append(w * A)
+                rows_y.append(w * jd.y[jd.train])
+            A = np.vstack(rows_A)
+            pen = np.ones(P, dtype=bool)
+            for k in range(len(js)):
+                pen[offs[k]:offs[k] + N_NOMINAL] = False
+            c = _ridge_lstsq(A, np.concatenate(rows_y), pen)
+            for k, j in enumerate(js):
+                coef[j] = c[offs[k]:offs[k + 1]]
+                pred[j] = own[j] @ coef[j] + S[k] @ c[offs[-1]:]
+            i = int(offs[-1])
+            for e in shared:
+                shared_coef[e.effect] = c[i:i + e.n_params]
+                i += e.n_params
+            n_params = P
+        for j, jd in prep.joints.items():
+            e = (jd.y - pred[j])[jd.val]
+            rss[j] = float(e @ e)
+        return Fit(pred, coef, shared_coef, rss, n_params)
+
+
+def _val_metrics(prep, fit, joints=None):
+    joints = list(prep.joints) if joints is None else list(joints)
+    y = np.concatenate([prep.joints[j].tau[prep.joints[j].rows][prep.joints[j].val] for j in joints])
+    yh = np.concatenate([(prep.joints[j].rb[prep.joints[j].rows] + fit.pred[j])[prep.joints[j].val]
+                         for j in joints])
+    return metrics_table(y, yh, fit.n_params)
+
+
+def _residual(prep, fit, j):
+    jd = prep.joints[j]
+    return jd.y - fit.pred[j]
+
+
+def _candidates(prep, model, fit, accepted, cache=None, changed=None):
+    """All extensions proposed for the current residual (not yet accepted ones). ``cache``: joint ->
+    proposals from the previous round, reused for joints whose model did not change."""
+    out = []
+    for j, jd in prep.joints.items():
+        if cache is not None and changed is not None and j not in changed and j in cache:
+            out += [e for e in cache[j] if (e.effect, j) not in accepted]
+            continue
+        start = len(out)
+        r = _residual(prep, fit, j)
+        X = model.design(j)
+        shared = model.shared_exts()
+        if shared:
+            X = np.hstack([X] + [e.cols[j] for e in shared])
+        t_rows = jd.t[jd.rows]
+        block = block_index(jd.t, jd.rows)
+        inner_tr = jd.train & (block % 4 == 0)
+        inner_va = jd.train & (block % 4 == 2)
+        y = jd.y
+
+        def fit_inner(C, X=X, y=y, a=inner_tr, b=inner_va):
+            A = np.hstack([X, C])
+            c, *_ = np.linalg.lstsq(A[a], y[a], rcond=None)
+            e = y[b] - A[b] @ c
+            return float(e @ e)
+
+        def fit_train(C, X=X, y=y, tr=jd.train):
+            A = np.hstack([X, C])
+            c, *_ = np.linalg.lstsq(A[tr], y[tr], rcond=None)
+            e = y[tr] - A[tr] @ c
+            return float(e @ e), float(c[-1])
+
+        def have(effect, j=j):
+            return (effect, j) in accepted
+
+        if not have("asymmetric_coulomb"):
+            out.append(det.asymmetric(jd, r))
+        if not have("position_dependent_friction"):
+            out.append(det.position_bfe(jd, r, None, fit_inner))
+        if prep.robot is None and not have("position_dependent_load"):
+            out.append(det.position_load(jd, r, fit_inner))
+        if not have("motor_position_ripple"):
+            out.append(det.ripple(jd, r))
+        if not have("energy_dependent_friction"):
+            cj = fit.coef[j]
+            names = nominal_names(prep.robot_kind)
+            kv, kc = cj[names.index("kv")], cj[names.index("kc")]
+            F_full = kv * jd.v + kc * np.sign(jd.v)
+            out.append(det.energy(jd, r, F_full, fit_train))
+        if not have("abrupt_change"):
+            out.append(det.change_point(jd, r))
+        if not have("gear_coupling") and len(prep.joints) > 1:
+            out.append(det.coupling(jd, r, prep))
+        if cache is not None:
+            cache[j] = [e for e in out[start:] if e is not None]
+    if prep.robot is not None and ("payload", None) not in accepted:
+        if "payload_ext" not in prep.meta:
+            prep.meta["payload_ext"] = det.payload(prep)
+        out.append(prep.meta["payload_ext"])
+    return [c for c in out if c is not None]
+
+
+def _test(prep, fit0, fit1, ext):
+    js = list(ext.cols)
+    n = int(sum(prep.joints[j].val.sum() for j in js))
+    rss0 = sum(fit0.rss_val[j] for j in js)
+    rss1 = sum(fit1.rss_val[j] for j in js)
+    d = ext.n_params
+    F = ((rss0 - rss1) / d) / (rss1 / max(n - d, 1))
+    p = float(scipy.stats.f.sf(F, d, max(n - d, 1))) if F > 0 else 1.0
+    gain = 1.0 - np.sqrt(rss1 / rss0) if rss0 > 0 else 0.0
+    score = float(sum(prep.joints[j].val.sum() * np.log(fit0.rss_val[j] / max(fit1.rss_val[j], 1e-300))
+                      for j in js) - 2 * d)
+    return {"F": float(F), "p_value": p, "dof": [d, n - d], "rmse_reduction": float(gain), "score": score,
+            "significant": bool(p < ALPHA and gain >= MIN_GAIN and score > 0)}
+
+
+@dataclass
+class Step:
+    ext: object
+    test: dict
+    fit: object
+    validation: dict
+    validation_joint: dict
+
+
+@dataclass
+class DiagnosisResult:
+    prep: object
+    nominal_fit: object
+    nominal_validation: dict
+    nominal_validation_joint: dict
+    steps: list
+    final_fit: object
+    final_model: object
+    rejected: list
+    timing: dict = field(default_factory=dict)
+    sigma: dict = field(default_factory=dict)
+
+
+def _search(prep, max_findings, alpha, min_gain):
+    model = Model(prep)
+    fit0 = model.fit()
+    sigma = {j: float(np.sqrt(fit0.rss_val[j] / max(prep.joints[j].val.sum(), 1))) for j in prep.joints}
+    nominal_val = _val_metrics(prep, fit0)
+    nominal_joint = {j: _val_metrics(prep, fit0, [j]) for j in prep.joints}
+    accepted = set()
+    steps = []
+    rejected = []
+    fit = fit0
+    cache, changed = {}, None
+    for _ in range(max_findings):
+        cands = _candidates(prep, model, fit, accepted, cache, changed)
+        results = []
+        for ext in cands:
+            m1 = Model(prep, model.exts + [ext])
+            f1 = m1.fit(sigma)
+            tst = _test(prep, fit, f1, ext)
+            tst["significant"] = bool(tst["p_value"] < alpha and tst["rmse_reduction"] >= min_gain
+                                      and tst["score"] > 0)
+            results.append((ext, tst, f1, m1))
+        sig = [r for r in results if r[1]["significant"]]
+        if not sig:
+            rejected = [{"effect": e.effect, "joint": e.joint, **{k: v for k, v in t.items() if k != "significant"}}
+                        for e, t, _, _ in results]
+            break
+        ext, tst, f1, m1 = max(sig, key=lambda r: r[1]["score"])
+        model = m1
+        fit = f1
+        accepted.add((ext.effect, None if ext.shared else ext.joint))
+        changed = set(prep.joints) if (ext.shared or model.shared_exts()) else set(ext.cols)
+        js = list(ext.cols)
+        steps.append(Step(ext, tst, f1, _val_metrics(prep, f1, js), {j: _val_metrics(prep, f1, [j]) for j in js}))
+    return fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma
+
+
+def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings: int = MAX_FINDINGS,
+                  alpha: float = ALPHA, min_gain: float = MIN_GAIN) -> DiagnosisResult:
+    """Prepare the data, fit the nominal model, and extend it while held-out tests say so.
+
+    Outliers are screened on the nominal residual first (:func:`prepare`); a large unmodeled effect
+    can hide them there, so after the search the final residual is screened again (6 MAD) and, when
+    it flags new samples, they are excluded and the search is repeated once."""
+    t0 = time.perf_counter()
+    prep = prepare(log, robot=robot, joints=joints, seed=seed)
+    t_prep = time.perf_counter() - t0
+    for _pass in range(2):
+        out = _search(prep, max_findings, alpha, min_gain)
+        fit = out[4]
+        new = 0
+        for j, jd in prep.joints.items():
+            e = jd.y - fit.pred[j]
+            med = np.median(e)
+            mad = 1.4826 * np.median(np.abs(e - med))
+            bad = np.abs(e - med) > OUTLIER_MAD * max(mad, 1e-12)
+            if bad.any() and _pass == 0:
+                new += int(bad.sum())
+                jd.counts["outliers"] = int(jd.counts.get("outliers", 0) + bad.sum())
+                jd.counts["outliers_found_after_extension"] = int(bad.sum())
+                jd.rows, jd.train, jd.val = jd.rows[~bad], jd.train[~bad], jd.val[~bad]
+        if not new:
+            break
+        prep.meta.pop("payload_ext", None)
+    fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma = out
+    timing = {"prepare_s": t_prep, "total_s": time.perf_counter() - t0, "alpha": alpha, "min_gain": min_gain}
+    return DiagnosisResult(prep, fit0, nominal_val, nominal_joint, steps, fit, model, rejected, timing, sigma)

@@ -1,0 +1,388 @@
+"""Candidate model extensions of the diagnosis, one per effect of the vocabulary.
+
+Each detector looks at the *training* part of the current residual of one joint (or of all
+joints, for the payload), chooses its nonlinear structure there (frequency, time constant, change
+time, number of kernels) and returns an :class:`Extension`: extra regressor columns that are
+linear in their parameters, plus what is needed to evaluate them at new samples.  The caller
+(:mod:`drake_est.diagnose.core`) refits the whole model with the extension on the training part
+and judges it on the validation part.
+
+==============================  ==============================================  ============
+effect                          columns                                         thesis
+==============================  ==============================================  ============
+position_dependent_friction     sign(qd) phi_k(q), Gaussian kernels in arm q    (9.13)-(9.16)
+motor_position_ripple           LPV periodic components in q, amplitude(qd)     Ch. 10
+energy_dependent_friction       sign(qd) E, E = k_e/(tau_e s + 1) |F qd|        (9.21)-(9.24), Alg. 6
+asymmetric_coulomb              1[qd < 0] (a different Coulomb level)           (9.3)
+gear_coupling                   qd_i, sign(qd_i) of the coupled joints i        (9.12)
+payload                         ID with 1 kg at the flange (4 COM offsets)      rigid body
+abrupt_change                   [qd, sign(qd)] 1[t >= t_c], t_c by DP            Ch. 7, (7.8)
+position_dependent_load         phi_k(q) (no sign): gravity/spring, generic only  (added name)
+==============================  ==============================================  ============
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.signal
+
+RIPPLE_BASIS = 8
+BFE_SIZES = (8, 16, 32, 64)
+#: FFT bins of the frequency scan: the highest frequency scanned is about
+#: RIPPLE_MAX_FFT / (64 span) cycles per rad (e.g. 680 cycles/rad over a 3 rad sweep), or the
+#: sampling-density limit of the positions if lower
+RIPPLE_MAX_FFT = 1 << 17
+VOCABULARY = ("position_dependent_friction", "motor_position_ripple", "energy_dependent_friction",
+              "asymmetric_coulomb", "gear_coupling", "payload", "abrupt_change")
+#: effect names added to the fixed vocabulary (for generic axes, whose nominal model has no gravity)
+EXTRA_EFFECTS = ("position_dependent_load",)
+
+
+@dataclass
+class Extension:
+    """A candidate model extension.
+
+    ``cols``: {joint: (n_rows_j, d) columns at that joint's used rows} (several joints only for
+    shared-parameter extensions such as the payload); ``spec``: JSON-able description used to
+    evaluate the columns at new samples (:func:`columns_at`); ``evidence``: detector output."""
+
+    effect: str
+    joint: int
+    cols: dict
+    names: list
+    spec: dict
+    evidence: dict = field(default_factory=dict)
+    obj: object = None        # e.g. the PeriodicComponents of the ripple (not serialized)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.names)
+
+    @property
+    def shared(self) -> bool:
+        """Parameters shared by several joints (the payload), fitted on all joints at once."""
+        return self.effect == "payload" or len(self.cols) > 1
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _sgn(v):
+    return np.sign(v)
+
+
+def gaussian_features(q, centers, width):
+    return np.exp(-0.5 * ((np.asarray(q, float)[:, None] - centers[None, :]) / width) ** 2)
+
+
+def unit_energy(t, W, tau_e):
+    """E with unit static gain: dE/dt = (W - E) / tau_e, zero-order hold, E(0) = 0 (9.23)."""
+    h = float(np.median(np.diff(t)))
+    a = float(np.exp(-h / tau_e))
+    return scipy.signal.lfilter([0.0, 1.0 - a], [1.0, -a], W)
+
+
+def columns_at(spec, q, v, t, others=None, E_unit=None, sign=None):
+    """Columns of an extension at arbitrary samples (arrays (N,) of the joint; ``others``:
+    {joint: velocity (N,)} for gear coupling; ``E_unit``: the unit-gain energy state; ``sign``: the
+    sign function (a smoothed one for integrators))."""
+    kind = spec["effect"]
+    _sgn = sign or np.sign
+    q, v, t = (np.atleast_1d(np.asarray(a, float)) for a in (q, v, t))
+    s = _sgn(v)
+    if kind == "asymmetric_coulomb":
+        return (v < 0).astype(float)[:, None]
+    if kind == "position_dependent_friction":
+        return s[:, None] * gaussian_features(q, np.asarray(spec["centers"]), spec["width"])
+    if kind == "position_dependent_load":
+        return gaussian_features(q, np.asarray(spec["centers"]), spec["width"])
+    if kind == "abrupt_change":
+        H = (t >= spec["t_change"]).astype(float)
+        return np.column_stack([v * H, s * H])
+    if kind == "gear_coupling":
+        return np.column_stack([c for i in spec["coupled_joints"] for c in (others[i], _sgn(others[i]))])
+    if kind == "energy_dependent_friction":
+        return (s * np.asarray(E_unit, float))[:, None]
+    if kind == "motor_position_ripple":
+        return spec["_pc"].regressors(q, v)
+    raise ValueError(f"no column evaluator for {kind}")
+
+
+# ----------------------------------------------------------------------------- detectors
+
+
+def asymmetric(jd, r):
+    c = (jd.v[jd.rows] < 0).astype(float)[:, None]
+    n_neg = int(np.sum(jd.v[jd.rows][jd.train] < 0))
+    if n_neg < 20 or n_neg > jd.train.sum() - 20:
+        return None
+    return Extension("asymmetric_coulomb", jd.joint, {jd.joint: c}, ["dkc_neg"], {"effect": "asymmetric_coulomb"},
+                     {"negative_velocity_samples": n_neg})
+
+
+def position_bfe(jd, r, block_of_rows, fit_inner):
+    """Gaussian kernels in arm position times sign(qd) (9.16); number of kernels chosen on the
+    training part by an inner split (train blocks 0, 4, 8, ... vs 2, 6, 10, ...)."""
+    q = jd.q[jd.rows]
+    v = jd.v[jd.rows]
+    lo, hi = np.quantile(q[jd.train], [0.002, 0.998])
+    span = hi - lo
+    if span < 0.02:
+        return None
+    best = None
+    for K in BFE_SIZES:
+        centers = np.linspace(lo, hi, K)
+        width = span / (K - 1)
+        C = _sgn(v)[:, None] * gaussian_features(q, centers, width)
+        err = fit_inner(C)
+        if best is None or err < best[0]:
+            best = (err, K, centers, width, C)
+    _, K, centers, width, C = best
+    spec = {"effect": "position_dependent_friction", "centers": centers.tolist(), "width": float(width)}
+    return Extension("position_dependent_friction", jd.joint, {jd.joint: C}, [f"w{k}" for k in range(K)], spec,
+                     {"n_kernels": int(K), "kernel_width_rad": float(width), "range_rad": [float(lo), float(hi)]})
+
+
+def position_load(jd, r, fit_inner):
+    """A direction-independent torque that depends on position (gravity, springs, cables): Gaussian
+    kernels in position, not multiplied by sign(qd).  Used for generic axes, whose nominal model has no
+    gravity; an added effect name (the vocabulary may grow)."""
+    q = jd.q[jd.rows]
+    lo, hi = np.quantile(q[jd.train], [0.002, 0.998])
+    span = hi - lo
+    if span < 0.02:
+        return None
+    best = None
+    for K in BFE_SIZES:
+        centers = np.linspace(lo, hi, K)
+        width = span / (K - 1)
+        C = gaussian_features(q, centers, width)
+        err = fit_inner(C)
+        if best is None or err < best[0]:
+            best = (err, K, centers, width, C)
+    _, K, centers, width, C = best
+    spec = {"effect": "position_dependent_load", "centers": centers.tolist(), "width": float(width)}
+    return Extension("position_dependent_load", jd.joint, {jd.joint: C}, [f"g{k}" for k in range(K)], spec,
+                     {"n_kernels": int(K), "kernel_width_rad": float(width), "range_rad": [float(lo), float(hi)]})
+
+
+def ripple(jd, r, n_components=2, n_basis=None):
+    """LPV spectral detector (Ch. 10): periodic components of the residual in arm position with
+    velocity-dependent amplitude; no gear ratio is assumed."""
+    from drake_est.errors import DrakeEstError
+    from drake_est.spectral.detect import find_periodic_components
+
+    tr = jd.train
+    q = jd.q[jd.rows]
+    v = jd.v[jd.rows]
+    qt, vt, rt = q[tr], v[tr], r[tr]
+    span = float(np.ptp(qt))
+    if span <= 0:
+        return None
+    try:
+        pc = find_periodic_components(qt, rt, schedule=vt, n_components=n_components, n_basis=n_basis or RIPPLE_BASIS,
+                                      f_min=8.0 / span, base=np.column_stack([_sgn(vt), vt]),
+                                      max_fft=RIPPLE_MAX_FFT)
+    except DrakeEstError:
+        return None
+    keep = [i for i in range(pc.n_components) if pc.explained_fraction[i] > 0.01] or [0]
+    keep = _not_aliased(pc, keep, qt, vt, rt) 
+    C = pc.regressors(q, v, which=keep)
+    spec = {"effect": "motor_position_ripple", "frequencies_per_arm_rad": [float(f) for f in pc.freqs[keep]],
+            "_pc": pc, "_which": keep}
+    f0 = float(pc.freqs[keep[0]])
+    ev = {"frequency_per_arm_rad": f0, "frequency_per_arm_rev": f0 * 2 * np.pi,
+          "frequencies_per_arm_rad": [float(f) for f in pc.freqs[keep]],
+          "explained_fraction_train": [float(x) for x in pc.explained_fraction[keep]],
+          "amplitude_slope_vs_speed": None if pc.velocity_trend is None else float(pc.velocity_trend[keep[0]]),
+          "rms_amplitude": float(pc.amplitudes[keep[0]])}
+    if jd.gear_ratio:
+        ev["frequency_per_motor_rev"] = f0 * 2 * np.pi / jd.gear_ratio
+    ext = Extension("motor_position_ripple", jd.joint, {jd.joint: C}, [f"c{k}" for k in range(C.shape[1])], spec, ev,
+                    obj=pc)
+    ext.spec["_pc"] = _Sub(pc, keep)
+    return ext
+
+
+def _not_aliased(pc, keep, q, v, r, min_frac=0.01, n_bins=4, need=3):
+    """Drop components that explain the residual at some speeds only.
+
+    Sampling in time aliases a ripple of f cycles/rad seen at speed v to f + m fs / v: over a segment of
+    constant speed the alias fits as well as the true frequency.  A real position-periodic effect
+    shows at slow and at fast speeds; so a component must explain at least ``min_frac`` of the residual
+    variance (beyond [sign(v), v]) in ``need`` of the ``n_bins`` speed quantile bins.  The strongest
+    component is kept if none passes."""
+    av = np.abs(v)
+    edges = np.quantile(av, np.linspace(0, 1, n_bins + 1))
+    bins = np.clip(np.searchsorted(edges, av, side="right") - 1, 0, n_bins - 1)
+    ok = []
+    for i in keep:
+        C = pc.regressors(q, v, which=[i])
+        passed = 0
+        for b in range(n_bins):
+            half = bins == b
+            if half.sum() < 4 * (C.shape[1] + 2):
+                continue
+            B = np.column_stack([_sgn(v[half]), v[half]])
+            rb = r[half] - B @ np.linalg.lstsq(B, r[half], rcond=None)[0]
+            A = np.hstack([B, C[half]])
+            rf = r[half] - A @ np.linalg.lstsq(A, r[half], rcond=None)[0]
+            if (rb @ rb - rf @ rf) >= min_frac * (rb @ rb) + 2.0 * C.shape[1] * (rf @ rf) / max(half.sum(), 1):
+                passed += 1
+        if passed >= need:
+            ok.append(i)
+    return ok or [keep[0]]
+
+
+class _Sub:
+    """The selected components of a PeriodicComponents (regressors only)."""
+
+    def __init__(self, pc, which):
+        self.pc, self.which = pc, which
+
+    def regressors(self, q, v):
+        return self.pc.regressors(q, v, which=self.which)
+
+
+def energy(jd, r, friction_full, fit_train, n_iter=2):
+    """Algorithm 6 with a variable-projection search over tau_e: E = H(s) W with W = |F qd| from
+    the current friction estimate, the gain k_e linear; tau_e by training error on a log grid."""
+    t = jd.t
+    T = float(t[-1] - t[0])
+    h = float(np.median(np.diff(t)))
+    taus = np.geomspace(max(2.0, 0.005 * T, 20 * h), 3.0 * T, 28)
+    v = jd.v
+    F = friction_full
+    best = None
+    for it in range(n_iter):
+        W = np.abs(F * v)
+        best = None
+        for tau in taus:
+            E = unit_energy(t, W, tau)
+            C = (_sgn(v) * E)[jd.rows][:, None]
+            err, coef = fit_train(C)
+            if best is None or err < best[0]:
+                best = (err, tau, C, coef, E)
+        # fixed-point update of the friction power with the fitted energy term (Algorithm 6)
+        F = friction_full + best[3] * _sgn(v) * best[4]
+    err, tau, C, coef, E = best
+    spec = {"effect": "energy_dependent_friction", "tau_e": float(tau)}
+    ev = {"time_constant_s": float(tau), "gain_k_e": float(coef), "duration_s": T}
+    ext = Extension("energy_dependent_friction", jd.joint, {jd.joint: C}, ["k_e"], spec, ev)
+    ext.spec["_W_source"] = "current friction estimate"
+    ext.obj = E
+    return ext
+
+
+def change_point(jd, r, min_frac=0.1):
+    """Abrupt change of the friction parameters (Ch. 7): the best single switch of
+    [qd, sign(qd)] parameters over the training samples by dynamic programming (7.8)."""
+    from drake_est.errors import DrakeEstError
+    from drake_est.identification.ltv import tv_regression_segments
+
+    tr = jd.train
+    rows = jd.rows
+    v = jd.v[rows]
+    Phi = np.column_stack([v, _sgn(v)])
+    try:
+        res = tv_regression_segments(Phi[tr], r[tr], 1, min_length=max(10, int(min_frac * tr.sum())))
+    except DrakeEstError:
+        return None
+    k = res.change_times[0]
+    # both segments must identify [kv, kc] (e.g. not a single velocity level after the change)
+    for seg in (slice(0, k), slice(k, None)):
+        P = Phi[tr][seg]
+        sv = np.linalg.svd(P / np.sqrt(max(len(P), 1)), compute_uv=False)
+        if sv.size < 2 or sv[-1] < 1e-3 * sv[0]:
+            return None
+    ttr = jd.t[rows][tr]
+    tc = float(0.5 * (ttr[k - 1] + ttr[k]))
+    H = (jd.t[rows] >= tc).astype(float)
+    C = np.column_stack([v * H, _sgn(v) * H])
+    spec = {"effect": "abrupt_change", "t_change": tc}
+    ev = {"t_change_s": tc, "segment_params_train": res.params.tolist()}
+    return Extension("abrupt_change", jd.joint, {jd.joint: C}, ["dkv_after", "dkc_after"], spec, ev)
+
+
+def coupling(jd, r, prep):
+    """Gear coupling (9.12): the velocities (linear and sign) of the joints coupled to this one."""
+    from drake_est.diagnose.nominal import coupled_joints
+    others = coupled_joints(jd.joint, list(prep.joints), prep.meta.get("robot_meta"))
+    if not others:
+        return None
+    rows = jd.rows
+    cols = []
+    names = []
+    use = []
+    for i in others:
+        vi = prep.log.dq[:, prep.log.col(i)][rows]
+        if np.mean(np.abs(vi) > 0.05 * np.quantile(np.abs(vi), 0.95)) < 0.2:
+            continue
+        cols += [vi, _sgn(vi)]
+        names += [f"kv_joint{i}", f"kc_joint{i}"]
+        use.append(i)
+    if not use:
+        return None
+    spec = {"effect": "gear_coupling", "coupled_joints": use}
+    return Extension("gear_coupling", jd.joint, {jd.joint: np.column_stack(cols)}, names, spec,
+                     {"coupled_joints": use})
+
+
+#: [N m per kg] RMS gravity torque of 1 kg at the flange on some diagnosed joint below which the payload
+#: detector does not apply: a payload is seen through gravity; without gravity torque on a diagnosed joint
+#: (e.g. only the vertical axis 1 moves) only its inertia would show, which the data selection (9.9)
+#: (small accelerations) does not excite
+PAYLOAD_MIN_GRAVITY = 0.1
+#: 1 kg point masses at these offsets in the flange frame [m]: ten generic points, so that the
+#: differences ID(with point mass) - ID(nominal) span the ten inertial parameters of any rigid payload
+#: (mass, first moments, second moments; inverse dynamics is linear in them)
+PAYLOAD_COMS = ((0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.0, 0.1, 0.0), (0.0, 0.0, 0.1), (0.1, 0.1, 0.0),
+                (0.1, 0.0, 0.1), (0.0, 0.1, 0.1), (0.2, 0.0, 0.0), (0.0, 0.2, 0.0), (0.0, 0.0, 0.2))
+
+
+def payload(prep):
+    """Unmodeled flange mass: torques of Drake's inverse dynamics with 1 kg at a few COM offsets
+    at the flange minus the nominal, one shared coefficient each (gravity + inertia)."""
+    if prep.robot is None:
+        return None
+    from drake_est.robots import RobotModel
+    rows = prep.meta["id_rows"]
+    ID0 = prep.meta["id_values"]
+    regs = []
+    for com in PAYLOAD_COMS:
+        try:
+            if prep.robot_kind == "irb140":
+                m = RobotModel.irb140(payload=(1.0, com))
+            else:
+                m = RobotModel(prep.robot.urdf, flange_frame=prep.robot.flange.name(), payload=(1.0, com))
+        except Exception:  # noqa: BLE001 - models without a usable flange: no payload detector
+            return None
+        if not regs:
+            m_g = m
+            Gs = [m_g.gravity_torques(q) - prep.robot.gravity_torques(q)
+                  for q in prep.q_full[rows[:: max(1, rows.size // 200)]]]
+            grav = max(float(np.sqrt(np.mean(np.array(Gs)[:, prep.robot_cols[j]] ** 2))) for j in prep.joints)
+            if grav < PAYLOAD_MIN_GRAVITY:
+                return None
+        regs.append(m.inverse_dynamics_batch(prep.q_full[rows], prep.v_full[rows], prep.a_full[rows]) - ID0)
+    pos = {int(rw): k for k, rw in enumerate(rows)}
+    cols = {}
+    for j, jd in prep.joints.items():
+        idx = np.array([pos[int(rw)] for rw in jd.rows])
+        c = prep.robot_cols[j]
+        cols[j] = np.column_stack([R[idx, c] for R in regs])
+    scale = {j: float(np.sqrt(np.mean(C**2))) for j, C in cols.items()}
+    if max(scale.values()) < 1e-9:
+        return None
+    j0 = max(scale, key=scale.get)
+    spec = {"effect": "payload", "coms_m": [list(c) for c in PAYLOAD_COMS]}
+    return Extension("payload", j0, cols, [f"m_at_com{k}" for k in range(len(PAYLOAD_COMS))], spec,
+                     {"regressor_rms_per_kg": scale})
+
+
+def _rotor_of(prep):
+    meta = prep.meta.get("robot_meta")
+    if meta is None:
+        return None
+    return (meta.gear_ratios, meta.rotor_inertias)

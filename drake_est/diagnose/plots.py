@@ -1,0 +1,111 @@
+"""PNG plots of the diagnosis (matplotlib, Agg): held-out residual of the nominal and the final
+model against time, arm position, motor position and velocity, and the simulation windows."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _thin(n, m=15000):
+    return np.arange(n) if n <= m else np.linspace(0, n - 1, m).astype(int)
+
+
+def _motor_angle(rep, jd):
+    """(angle, label): the motor angle mod 2 pi from the gear ratio when known, else from the
+    frequency of a detected ripple (one period per cycle), else None."""
+    if jd.gear_ratio:
+        return np.mod(jd.gear_ratio * jd.q, 2 * np.pi), f"motor angle mod 2π (gear ratio {jd.gear_ratio:g}) [rad]"
+    for s in rep.result.steps:
+        if s.ext.effect == "motor_position_ripple" and s.ext.joint == jd.joint:
+            f = s.ext.evidence["frequency_per_arm_rad"]
+            return np.mod(2 * np.pi * f * jd.q, 2 * np.pi), f"phase of the detected ripple ({f:.4g} cycles/rad) [rad]"
+    return None, None
+
+
+def write_plots(rep, out) -> list:
+    plt = _plt()
+    res = rep.result
+    prep = res.prep
+    files = []
+    joints = list(prep.joints)
+    nj = len(joints)
+    data = {}
+    for j in joints:
+        jd = prep.joints[j]
+        val = jd.val
+        r0 = (jd.y - res.nominal_fit.pred[j])[val]
+        r1 = (jd.y - res.final_fit.pred[j])[val]
+        rows = jd.rows[val]
+        data[j] = (jd, rows, r0, r1)
+    specs = [("residual_time.png", "time [s]", lambda jd, rows: jd.t[rows]),
+             ("residual_position.png", "arm position [rad]", lambda jd, rows: jd.q[rows]),
+             ("residual_velocity.png", "velocity [rad/s]", lambda jd, rows: jd.v[rows])]
+    for name, xlabel, xf in specs:
+        fig, axes = plt.subplots(nj, 1, figsize=(10, 3.2 * nj), squeeze=False)
+        for ax, j in zip(axes[:, 0], joints):
+            jd, rows, r0, r1 = data[j]
+            x = xf(jd, rows)
+            k = _thin(x.size)
+            ax.plot(x[k], r0[k], ".", ms=2, color="0.6", alpha=0.5, label="nominal model")
+            if res.steps:
+                ax.plot(x[k], r1[k], ".", ms=2, color="C0", alpha=0.5, label="extended model")
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel(f"joint {j} residual [N m]")
+            ax.legend(loc="upper right", markerscale=5)
+            ax.set_title(f"Held-out torque residual of joint {j} vs {xlabel.split(' [')[0]}")
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=100)
+        plt.close(fig)
+        files.append(name)
+    fig, axes = plt.subplots(nj, 1, figsize=(10, 3.2 * nj), squeeze=False)
+    any_motor = False
+    for ax, j in zip(axes[:, 0], joints):
+        jd, rows, r0, r1 = data[j]
+        ang, label = _motor_angle(rep, jd)
+        if ang is None:
+            ax.text(0.5, 0.5, f"joint {j}: no gear ratio known and no ripple detected", ha="center",
+                    transform=ax.transAxes)
+            ax.set_axis_off()
+            continue
+        any_motor = True
+        x = ang[rows]
+        k = _thin(x.size)
+        ax.plot(x[k], r0[k], ".", ms=2, color="0.6", alpha=0.5, label="nominal model")
+        if res.steps:
+            ax.plot(x[k], r1[k], ".", ms=2, color="C0", alpha=0.5, label="extended model")
+        ax.set_xlabel(label)
+        ax.set_ylabel(f"joint {j} residual [N m]")
+        ax.legend(loc="upper right", markerscale=5)
+        ax.set_title(f"Held-out torque residual of joint {j} vs motor angle")
+    fig.tight_layout()
+    if any_motor:
+        fig.savefig(out / "residual_motor_position.png", dpi=100)
+        files.append("residual_motor_position.png")
+    plt.close(fig)
+    sim = rep.simulation
+    if sim and sim.get("_traces"):
+        tr = sim["_traces"]
+        fig, axes = plt.subplots(nj, len(tr), figsize=(3.6 * len(tr), 3.0 * nj), squeeze=False)
+        for c, w in enumerate(tr):
+            for r, j in enumerate(sim["joints"]):
+                ax = axes[r, c]
+                ts, Vm = w["measured"]
+                ax.plot(ts, Vm[:, r], "k-", lw=1.5, label="measured")
+                ax.plot(w["nominal"][0], w["nominal"][1][:, r], "--", color="0.5", label="nominal sim.")
+                ax.plot(w["extended"][0], w["extended"][1][:, r], "-", color="C0", label="extended sim.")
+                ax.set_xlabel("time [s]")
+                ax.set_ylabel(f"joint {j} velocity [rad/s]")
+                if r == 0 and c == 0:
+                    ax.legend(fontsize=7)
+        fig.suptitle("Simulation with the measured torque from the measured state (Sec. 3.1)")
+        fig.tight_layout()
+        fig.savefig(out / "simulation.png", dpi=100)
+        plt.close(fig)
+        files.append("simulation.png")
+    return files

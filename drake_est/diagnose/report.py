@@ -1,0 +1,309 @@
+"""The diagnosis report: ``report.json`` (fixed keys), ``report.md`` and the PNG plots it links."""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from drake_est.diagnose.nominal import n_blocks_for, nominal_names
+
+EFFECT_TEXT = {
+    "position_dependent_friction": "friction that depends on the arm position (Eq. 9.16): a basis-function expansion in "
+                                   "arm angle times sign(velocity)",
+    "motor_position_ripple": "a torque ripple periodic in the motor angle whose amplitude depends on the velocity "
+                             "(LPV spectral method, Ch. 10)",
+    "energy_dependent_friction": "a slow drift of the Coulomb level driven by the dissipated friction power "
+                                 "(Eqs. 9.21-9.24, Algorithm 6)",
+    "asymmetric_coulomb": "a Coulomb level that depends on the direction of motion (Eq. 9.3)",
+    "gear_coupling": "friction of coupled wrist motors: the velocities of the coupled joints enter the torque "
+                     "(Eq. 9.12)",
+    "payload": "an unmodeled mass at the flange (gravity and inertia regressors from Drake)",
+    "abrupt_change": "friction parameters that change at an instant (piecewise-constant parameters, Ch. 7)",
+    "position_dependent_load": "a direction-independent torque that depends on position (gravity, springs, "
+                               "cables), which the generic axis model lacks",
+}
+
+
+def _r(x, nd=6):
+    if isinstance(x, dict):
+        return {str(k): _r(v, nd) for k, v in x.items() if not str(k).startswith("_")}
+    if isinstance(x, (list, tuple)):
+        return [_r(v, nd) for v in x]
+    if isinstance(x, (np.floating, float)):
+        x = float(x)
+        return x if not np.isfinite(x) else float(f"{x:.{nd}g}")
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.ndarray):
+        return _r(x.tolist(), nd)
+    if isinstance(x, (np.bool_,)):
+        return bool(x)
+    return x
+
+
+def _coef_slices(model, fit, j):
+    names = nominal_names(model.prep.robot_kind)
+    c = fit.coef[j]
+    out = {"nominal": dict(zip(names, c[:len(names)]))}
+    k = len(names)
+    for e in model.own(j):
+        out[e.effect] = c[k:k + e.n_params]
+        k += e.n_params
+    return out
+
+
+def effect_parameters(result, ext, model, fit) -> dict:
+    """Physical parameters of one accepted extension from the fit where it was accepted."""
+    prep = result.prep
+    if ext.effect == "payload":
+        from drake_est.diagnose.simulate import _payload_of
+        pl = _payload_of(result, fit)
+        coef = fit.shared["payload"]
+        d = {"coefficients_kg": coef, "com_candidates_m": ext.spec["coms_m"]}
+        if pl is not None:
+            d["mass_kg"] = pl[0]
+            d["com_in_flange_m"] = pl[1]
+        return d
+    sl = _coef_slices(model, fit, ext.joint)
+    kv, kc = sl["nominal"]["kv"], sl["nominal"]["kc"]
+    c = sl[ext.effect]
+    d = {}
+    if ext.effect == "asymmetric_coulomb":
+        d = {"kc_pos": kc, "kc_neg": kc - c[0], "kv": kv}
+    elif ext.effect == "position_dependent_friction":
+        jd = prep.joints[ext.joint]
+        qq = np.linspace(*ext.evidence["range_rad"], 200)
+        from drake_est.diagnose.detectors import gaussian_features
+        level = gaussian_features(qq, np.asarray(ext.spec["centers"]), ext.spec["width"]) @ c
+        d = {"n_kernels": ext.evidence["n_kernels"], "kernel_width_rad": ext.spec["width"],
+             "centers_rad": ext.spec["centers"], "weights_nm": c,
+             "coulomb_level_range_nm": [kc + float(level.min()), kc + float(level.max())],
+             "position_of_max_deviation_rad": float(qq[int(np.argmax(np.abs(level)))])}
+        _ = jd
+    elif ext.effect == "motor_position_ripple":
+        d = {k: ext.evidence[k] for k in ("frequency_per_arm_rad", "frequency_per_arm_rev", "frequencies_per_arm_rad",
+                                          "rms_amplitude", "amplitude_slope_vs_speed") if k in ext.evidence}
+        if "frequency_per_motor_rev" in ext.evidence:
+            d["frequency_per_motor_rev"] = ext.evidence["frequency_per_motor_rev"]
+        d["n_coefficients"] = int(c.size)
+    elif ext.effect == "energy_dependent_friction":
+        d = {"time_constant_s": ext.spec["tau_e"], "gain_k_e": float(c[0]), "kc": kc, "kv": kv}
+    elif ext.effect == "abrupt_change":
+        d = {"t_change_s": ext.spec["t_change"], "kv_before": kv, "kc_before": kc, "kv_after": kv + c[0],
+             "kc_after": kc + c[1]}
+    elif ext.effect == "position_dependent_load":
+        from drake_est.diagnose.detectors import gaussian_features
+        qq = np.linspace(*ext.evidence["range_rad"], 200)
+        load = gaussian_features(qq, np.asarray(ext.spec["centers"]), ext.spec["width"]) @ c
+        d = {"n_kernels": ext.evidence["n_kernels"], "kernel_width_rad": ext.spec["width"],
+             "load_range_nm": [float(load.min()), float(load.max())]}
+    elif ext.effect == "gear_coupling":
+        for k, i in enumerate(ext.spec["coupled_joints"]):
+            d[f"joint{i}"] = {"kv": c[2 * k], "kc": c[2 * k + 1]}
+    return d
+
+
+@dataclass
+class DiagnosisReport:
+    """What :func:`drake_est.diagnose.diagnose` returns: the numbers (``to_dict()`` is report.json),
+    the fitted models, and ``write(out_dir)`` for report.json, report.md and the plots."""
+
+    result: object
+    source: str = "<log>"
+    robot: str = "generic"
+    simulation: dict = None
+    files: list = field(default_factory=list)
+
+    # ----------------------------------------------------------------- accessors
+    @property
+    def findings(self) -> list:
+        return self.to_dict()["findings"]
+
+    @property
+    def effects(self) -> list:
+        return [s.ext.effect for s in self.result.steps]
+
+    @property
+    def top(self):
+        f = self.findings
+        return f[0] if f else None
+
+    def to_dict(self) -> dict:
+        res = self.result
+        prep = res.prep
+        log = prep.log
+        data = {"file": self.source, "samples": int(log.n_samples), "joints": [int(j) for j in prep.joints],
+                "duration_s": float(log.duration), "sample_rate_hz": float(log.sample_rate), "robot": self.robot,
+                "skipped_joints": {str(j): r for j, r in prep.skipped.items()},
+                "excluded": {str(j): {k: v for k, v in jd.counts.items() if k not in ("thresholds", "inertia")}
+                             for j, jd in prep.joints.items()},
+                "selection": {str(j): jd.counts["thresholds"] for j, jd in prep.joints.items()},
+                "split": f"alternating time blocks ({n_blocks_for(log.duration)}): even blocks train, odd blocks validate",
+                "validation_samples": {str(j): int(jd.val.sum()) for j, jd in prep.joints.items()}}
+        if prep.meta.get("joints_held_at_zero"):
+            data["robot_joints_not_in_log_held_at_zero"] = prep.meta["joints_held_at_zero"]
+        from drake_est.diagnose.core import Model
+        nom_params = {}
+        for j, jd in prep.joints.items():
+            p = _coef_slices(Model(prep), res.nominal_fit, j)["nominal"]
+            if "inertia" in jd.counts:
+                p["J"] = jd.counts["inertia"]
+            nom_params[str(j)] = p
+        nominal = {"validation": res.nominal_validation,
+                   "per_joint": {str(j): m for j, m in res.nominal_validation_joint.items()},
+                   "parameters": nom_params,
+                   "model": "rigid body (Drake MultibodyPlant inverse dynamics) + Coulomb/viscous (9.2)"
+                   if prep.robot is not None else "J qdd + Coulomb/viscous (9.2) per axis"}
+        findings = []
+        prev = {}
+        for k, s in enumerate(res.steps):
+            from drake_est.diagnose.core import Model as M
+            model_k = M(prep, [st.ext for st in res.steps[:k + 1]])
+            js = list(s.ext.cols)
+            nom_rmse = float(np.sqrt(sum(res.nominal_validation_joint[j]["rmse"] ** 2 * prep.joints[j].val.sum()
+                                         for j in js) / sum(prep.joints[j].val.sum() for j in js)))
+            ev = {"test": "F-test on held-out residual", "p_value": s.test["p_value"], "F": s.test["F"],
+                  "dof": s.test["dof"], "heldout_rmse_reduction": s.test["rmse_reduction"]}
+            ev.update({k2: v for k2, v in s.ext.evidence.items() if k2 != "segment_params_train"})
+            f = {"effect": s.ext.effect, "joint": int(s.ext.joint), "score": s.test["score"], "evidence": ev,
+                 "parameters": effect_parameters(res, s.ext, model_k, s.fit),
+                 "validation": s.validation,
+                 "gain": {"rmse_ratio": nom_rmse / s.validation["rmse"],
+                          "rmse_ratio_vs_previous_step": (prev.get(tuple(js), nom_rmse)) / s.validation["rmse"]}}
+            if s.ext.shared:
+                f["joints"] = [int(j) for j in js]
+            prev[tuple(js)] = s.validation["rmse"]
+            findings.append(f)
+        final = {"effects": self.effects, "validation": res.final_fit and _final_val(res),
+                 "per_joint": {str(j): v for j, v in _final_joint(res).items()},
+                 "gain": {"rmse_ratio": res.nominal_validation["rmse"] / _final_val(res)["rmse"]},
+                 "n_params": int(res.final_fit.n_params),
+                 "noise_estimate_nm": {str(j): float(np.sqrt(res.final_fit.rss_val[j] / prep.joints[j].val.sum()))
+                                       for j in prep.joints}}
+        out = {"data": data, "nominal": nominal, "findings": findings, "final": final,
+               "not_found": sorted([{k: v for k, v in r.items()} for r in res.rejected],
+                                   key=lambda r: -r["score"])[:8],
+               "settings": {"alpha": res.timing.get("alpha"), "min_rmse_reduction": res.timing.get("min_gain")},
+               "timing_s": {k: v for k, v in res.timing.items() if k.endswith("_s")}}
+        if self.simulation is not None:
+            out["simulation"] = {k: v for k, v in self.simulation.items() if not k.startswith("_")}
+        if self.files:
+            out["files"] = list(self.files)
+        return _r(out)
+
+    # ----------------------------------------------------------------- writing
+    def write(self, out_dir) -> Path:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        from drake_est.diagnose.plots import write_plots
+        self.files = write_plots(self, out)
+        d = self.to_dict()
+        (out / "report.json").write_text(json.dumps(d, indent=2))
+        (out / "report.md").write_text(markdown(d))
+        return out
+
+    def summary(self) -> str:
+        d = self.to_dict()
+        lines = [f"{d['data']['file']}: {d['data']['samples']} samples, {d['data']['duration_s']:.0f} s, "
+                 f"joints {d['data']['joints']} ({d['data']['robot']})"]
+        for j, r in d["data"]["skipped_joints"].items():
+            lines.append(f"  joint {j} skipped: {r}")
+        nv = d["nominal"]["validation"]
+        lines.append(f"nominal model: held-out RMSE {nv['rmse']:.4g} N m, Fit {nv['fit']:.1f} %")
+        if not d["findings"]:
+            lines.append("no finding: the nominal model explains the held-out data (no extension passed the test)")
+        for f in d["findings"]:
+            ev = f["evidence"]
+            extra = ""
+            if "frequency_per_arm_rad" in ev:
+                extra = f", {ev['frequency_per_arm_rad']:.4g} cycles/rad"
+            if "t_change_s" in ev:
+                extra = f", at t = {ev['t_change_s']:.4g} s"
+            if "time_constant_s" in ev:
+                extra = f", tau_e = {ev['time_constant_s']:.4g} s"
+            lines.append(f"FOUND {f['effect']} (joint {f['joint']}{extra}): p = {ev['p_value']:.2g}, held-out RMSE "
+                         f"{f['validation']['rmse']:.4g} N m, gain x{f['gain']['rmse_ratio']:.3g}")
+        fv = d["final"]["validation"]
+        lines.append(f"final model {d['final']['effects'] or '(nominal)'}: held-out RMSE {fv['rmse']:.4g} N m, "
+                     f"Fit {fv['fit']:.1f} %, gain x{d['final']['gain']['rmse_ratio']:.3g}")
+        return "\n".join(lines)
+
+
+def _final_val(res):
+    from drake_est.diagnose.core import _val_metrics
+    return _val_metrics(res.prep, res.final_fit)
+
+
+def _final_joint(res):
+    from drake_est.diagnose.core import _val_metrics
+    return {j: _val_metrics(res.prep, res.final_fit, [j]) for j in res.prep.joints}
+
+
+def _fmt(x):
+    if isinstance(x, float):
+        return f"{x:.4g}"
+    return str(x)
+
+
+def markdown(d: dict) -> str:
+    """Human-readable account of a report dict."""
+    L = ["# Model-discrepancy diagnosis", ""]
+    da = d["data"]
+    L.append(f"Log `{da['file']}`: {da['samples']} samples, {da['duration_s']:.1f} s at {da['sample_rate_hz']:.4g} Hz; "
+             f"diagnosed joints {da['joints']} with the `{da['robot']}` model.")
+    for j, r in da["skipped_joints"].items():
+        L.append(f"- joint {j} skipped: {r}")
+    for j, c in da["excluded"].items():
+        L.append(f"- joint {j}: {c.get('selected', 0)} samples selected by (9.9); excluded {c.get('near_zero_velocity', 0)} "
+                 f"near zero velocity, {c.get('accelerating', 0)} accelerating, {c.get('outliers', 0)} outliers (> 6 MAD)"
+                 + (f", {c['thinned']} thinned" if c.get("thinned") else ""))
+    L += ["", f"Validation: {da['split']}.", "", "## What the simulation gets wrong", ""]
+    nv = d["nominal"]["validation"]
+    L.append(f"The nominal model ({d['nominal']['model']}) leaves a held-out RMSE of **{nv['rmse']:.4g} N m** "
+             f"(MAE {nv['mae']:.4g}, Fit {nv['fit']:.1f} %, FPE {nv['fpe']:.4g}).")
+    for j, p in d["nominal"]["parameters"].items():
+        L.append(f"- joint {j}: " + ", ".join(f"{k} = {_fmt(v)}" for k, v in p.items()))
+    files = d.get("files", [])
+    for f in files:
+        if f.startswith("residual"):
+            L.append(f"\n![{f}]({f})")
+    L += ["", "## Causes found", ""]
+    if not d["findings"]:
+        L.append("No extension improved the held-out error significantly: the nominal model explains the data to "
+                 "the noise level.")
+    for k, f in enumerate(d["findings"], 1):
+        ev = f["evidence"]
+        L.append(f"### {k}. `{f['effect']}` on joint {f['joint']}")
+        L.append(f"Cause: {EFFECT_TEXT.get(f['effect'], f['effect'])}.")
+        L.append(f"Evidence: {ev['test']}, F = {ev['F']:.4g} with {ev['dof']} degrees of freedom, p = {ev['p_value']:.3g}; "
+                 f"held-out RMSE reduced by {100 * ev['heldout_rmse_reduction']:.1f} % (score {f['score']:.4g}).")
+        L.append("Parameters: " + ", ".join(f"{a} = {_fmt(b)}" for a, b in f["parameters"].items()
+                                            if not isinstance(b, list) or len(b) <= 4))
+        v = f["validation"]
+        L.append(f"Held-out after this step: RMSE {v['rmse']:.4g} N m, MAE {v['mae']:.4g}, Fit {v['fit']:.1f} %, "
+                 f"FPE {v['fpe']:.4g}; gain x{f['gain']['rmse_ratio']:.3g} over the nominal model.")
+        L.append("")
+    fv = d["final"]["validation"]
+    L += ["## The extended model", "",
+          f"Effects: {', '.join(d['final']['effects']) or 'none (nominal)'}; held-out RMSE **{fv['rmse']:.4g} N m** "
+          f"(nominal {nv['rmse']:.4g}), gain x{d['final']['gain']['rmse_ratio']:.3g}."]
+    if "simulation" in d:
+        s = d["simulation"]
+        L += ["", "## Simulation error (Sec. 3.1)", "",
+              f"{s['method']}; {s['n_windows']} windows of {s['window_s']} s from the measured state, driven by the "
+              f"measured torque. Velocity RMS error [rad/s]:"]
+        for j in s.get("joints", []):
+            a = s.get("velocity_rmse_nominal", {}).get(str(j))
+            b = s.get("velocity_rmse_extended", {}).get(str(j))
+            if a is not None:
+                L.append(f"- joint {j}: nominal {a:.4g}, extended {b:.4g}")
+        if "simulation.png" in files:
+            L.append("\n![simulation](simulation.png)")
+    if d.get("not_found"):
+        L += ["", "## Candidates rejected in the last round", ""]
+        for r in d["not_found"][:6]:
+            L.append(f"- {r['effect']} (joint {r['joint']}): held-out RMSE reduction {100 * r['rmse_reduction']:.2f} %, "
+                     f"p = {r['p_value']:.3g}")
+    return "\n".join(L) + "\n"

@@ -1,0 +1,224 @@
+"""Model-discrepancy diagnosis: the tests hide an effect in a simulated IRB 140 log and require the
+diagnosis to find it (top finding = hidden effect on its joint), to report nothing on logs without
+an effect, and to bring the held-out RMSE of the extended model within 20 % of the noise level.
+
+Logs are short (60-300 s) and generated once per test session; the big confusion matrix over
+>= 60 randomized logs is ``benchmarks/bench_diagnose.py`` (and the ``benchmark``-marked test in
+``test_diagnose_cli.py``)."""
+from __future__ import annotations
+
+import functools
+import json
+
+import numpy as np
+import pytest
+
+from drake_est.data import Log
+from drake_est.diagnose import VOCABULARY, diagnose, friction_system
+from drake_est.errors import DataError
+from drake_est.synth import synthesize
+
+SPECS = {
+    "none": dict(effect="none", seed=11, duration=90.0),
+    "position_dependent_friction": dict(effect="position_dependent_friction", seed=12, duration=100.0),
+    "motor_position_ripple": dict(effect="motor_position_ripple", seed=13, duration=100.0),
+    "asymmetric_coulomb": dict(effect="asymmetric_coulomb", seed=14, duration=80.0),
+    "abrupt_change": dict(effect="abrupt_change", seed=15, duration=100.0),
+    "gear_coupling": dict(effect="gear_coupling", seed=16, duration=60.0, sample_rate=50.0),
+    "payload": dict(effect="payload", seed=17, duration=60.0, sample_rate=50.0),
+    "energy_dependent_friction": dict(effect="energy_dependent_friction", seed=18, duration=300.0, sample_rate=20.0),
+    "position+energy": dict(effect=["position_dependent_friction", "energy_dependent_friction"], seed=19,
+                            duration=300.0, sample_rate=20.0),
+}
+
+
+@functools.lru_cache(maxsize=None)
+def make(name):
+    log, truth = synthesize(**SPECS[name])
+    # only the columns of the foundation format that a user log has: t, q<j>, tau<j>
+    return Log(t=log.t, q=log.q, tau=log.tau, joints=log.joints), truth
+
+
+@functools.lru_cache(maxsize=None)
+def report(name, robot="irb140"):
+    log, truth = make(name)
+    return diagnose(log, robot=robot, seed=0, simulate=False), truth
+
+
+def _final_rmse(rep, joints):
+    d = rep.to_dict()
+    return max(d["final"]["per_joint"][str(j)]["rmse"] for j in joints if str(j) in d["final"]["per_joint"])
+
+
+def test_vocabulary_is_fixed():
+    assert VOCABULARY == ("position_dependent_friction", "motor_position_ripple", "energy_dependent_friction",
+                          "asymmetric_coulomb", "gear_coupling", "payload", "abrupt_change")
+
+
+def test_none_log_gives_no_finding():
+    rep, truth = report("none")
+    assert rep.findings == []
+    d = rep.to_dict()
+    assert d["final"]["effects"] == []
+    # the nominal model explains the held-out data to the noise level
+    assert d["nominal"]["validation"]["rmse"] < 1.2 * truth["noise_std"]
+    # held joints are reported as skipped, not diagnosed
+    assert set(d["data"]["skipped_joints"]) == {"2", "3", "4", "5", "6"}
+
+
+@pytest.mark.parametrize("name", ["position_dependent_friction", "motor_position_ripple", "asymmetric_coulomb",
+                                  "abrupt_change", "energy_dependent_friction"])
+def test_single_joint_effect_is_found(name):
+    rep, truth = report(name)
+    f = rep.findings
+    assert f, f"nothing found for hidden {name}"
+    assert f[0]["effect"] == name, [x["effect"] for x in f]
+    assert f[0]["joint"] in truth["joints"]
+    assert f[0]["evidence"]["p_value"] < 1e-4
+    assert f[0]["gain"]["rmse_ratio"] > 1.0
+    assert [x["effect"] for x in f] == [name], "spurious extra findings"
+    assert _final_rmse(rep, truth["joints"]) <= 1.2 * truth["noise_std"]
+
+
+def test_ripple_frequency_without_gear_ratio():
+    """The generic robot knows no gear ratio; the LPV spectral detector still finds the ripple
+    frequency (cycles per arm radian = harmonic * gear / (2 pi))."""
+    rep, truth = report("motor_position_ripple", robot="generic")
+    f = rep.findings[0]
+    assert f["effect"] == "motor_position_ripple"
+    true_f = truth["effect_parameters"]["motor_position_ripple"][1]["frequency_per_arm_rad"]
+    assert abs(f["evidence"]["frequency_per_arm_rad"] - true_f) < 0.01 * true_f
+    # amplitude falls with speed, as injected
+    assert f["evidence"]["amplitude_slope_vs_speed"] < 0
+
+
+def test_abrupt_change_time_and_levels():
+    rep, truth = report("abrupt_change")
+    p = rep.findings[0]["parameters"]
+    tp = truth["effect_parameters"]["abrupt_change"][1]
+    assert abs(p["t_change_s"] - tp["t_change"]) < 0.06 * rep.to_dict()["data"]["duration_s"]
+    assert p["kc_after"] == pytest.approx(tp["kc_after"], rel=0.15)
+
+
+def test_energy_time_constant():
+    rep, truth = report("energy_dependent_friction")
+    p = rep.findings[0]["parameters"]
+    tp = truth["effect_parameters"]["energy_dependent_friction"][1]
+    assert 0.5 * tp["tau_e"] < p["time_constant_s"] < 2.0 * tp["tau_e"]
+    assert p["gain_k_e"] < 0   # friction falls as the joint warms up, as injected
+
+
+def test_gear_coupling_found_on_wrist():
+    rep, truth = report("gear_coupling")
+    f = rep.findings
+    assert f and f[0]["effect"] == "gear_coupling" and f[0]["joint"] in (5, 6)
+    assert {x["effect"] for x in f} == {"gear_coupling"}
+    assert {x["joint"] for x in f} == {5, 6}       # joint 4 has no coupled friction
+    assert _final_rmse(rep, [4, 5, 6]) <= 1.2 * truth["noise_std"]
+
+
+def test_payload_found_and_mass():
+    rep, truth = report("payload")
+    f = rep.findings
+    assert f and f[0]["effect"] == "payload" and f[0]["joint"] in truth["joints"]
+    assert [x["effect"] for x in f] == ["payload"]
+    m = truth["effect_parameters"]["payload"]["mass"]
+    assert f[0]["parameters"]["mass_kg"] == pytest.approx(m, rel=0.15)
+    assert _final_rmse(rep, truth["joints"]) <= 1.2 * truth["noise_std"]
+
+
+def test_combined_position_and_energy_both_found():
+    rep, truth = report("position+energy")
+    eff = [x["effect"] for x in rep.findings]
+    assert set(eff) == {"position_dependent_friction", "energy_dependent_friction"}, eff
+    assert _final_rmse(rep, truth["joints"]) <= 1.2 * truth["noise_std"]
+
+
+def test_outliers_are_flagged_and_do_not_create_findings():
+    log, truth = make("none")
+    rng = np.random.default_rng(3)
+    tau = log.tau.copy()
+    k = rng.choice(log.n_samples, 40, replace=False)
+    tau[k, 0] += rng.choice([-1, 1], 40) * 20 * truth["noise_std"]
+    bad = Log(t=log.t, q=log.q, tau=tau, joints=log.joints)
+    rep = diagnose(bad, robot="irb140", simulate=False)
+    assert rep.findings == []
+    assert rep.to_dict()["data"]["excluded"]["1"]["outliers"] >= 25   # most spikes fall on selected samples
+
+
+def test_other_sample_rate_and_generic_robot():
+    """A 10 Hz decimation of the position-dependence log, diagnosed as a generic axis."""
+    log, truth = make("position_dependent_friction")
+    idx = np.arange(0, log.n_samples, 10)
+    low = Log(t=log.t[idx], q=log.q[idx], tau=log.tau[idx], joints=log.joints)
+    rep = diagnose(low, robot="generic", joints=[1], simulate=False)
+    assert rep.findings and rep.findings[0]["effect"] == "position_dependent_friction"
+
+
+def test_report_shape_and_simulation(tmp_path):
+    log, truth = make("asymmetric_coulomb")
+    rep = diagnose(log, robot="irb140", seed=0)
+    rep.write(tmp_path)
+    d = json.loads((tmp_path / "report.json").read_text())
+    assert set(["data", "nominal", "findings", "final"]) <= set(d)
+    assert set(["file", "samples", "joints", "duration_s"]) <= set(d["data"])
+    assert set(["rmse", "mae", "fit", "fpe"]) <= set(d["nominal"]["validation"])
+    f = d["findings"][0]
+    assert set(["effect", "joint", "score", "evidence", "parameters", "validation", "gain"]) <= set(f)
+    assert f["evidence"]["test"] == "F-test on held-out residual" and "p_value" in f["evidence"]
+    assert "rmse_ratio" in f["gain"]
+    assert d["final"]["effects"] == ["asymmetric_coulomb"] and "rmse" in d["final"]["validation"]
+    for png in ("residual_time.png", "residual_position.png", "residual_motor_position.png",
+                "residual_velocity.png", "simulation.png"):
+        assert (tmp_path / png).stat().st_size > 1000
+        assert png in (tmp_path / "report.md").read_text()
+    # re-simulation with the measured torque: the extended model tracks the measured velocity better
+    s = d["simulation"]
+    assert s["velocity_rmse_extended"]["1"] < s["velocity_rmse_nominal"]["1"]
+    # the extended friction model is a Drake system with named ports
+    sys_ = friction_system(rep)
+    ctx = sys_.CreateDefaultContext()
+    q = np.zeros(6)
+    v = np.zeros(6)
+    v[0] = -0.5
+    sys_.get_input_port(0).FixValue(ctx, q)
+    sys_.get_input_port(1).FixValue(ctx, v)
+    F = sys_.get_output_port(0).Eval(ctx)
+    p = f["parameters"]
+    # extension terms fade out below the selection speed v_min (|tanh(v / v_min)|; ~1 at 0.5 rad/s)
+    assert F[0] == pytest.approx(-p["kc_neg"] - 0.5 * p["kv"], rel=2e-3)
+    assert F[0] != pytest.approx(-p["kc_pos"] - 0.5 * p["kv"], rel=2e-2)
+    assert sys_.get_output_port(0).get_name() == "friction_torques"
+
+
+def test_bad_input_raises_one_line_errors():
+    log, _ = make("none")
+    with pytest.raises(DataError, match="joint 9"):
+        diagnose(log, robot="irb140", joints=[9], simulate=False)
+    with pytest.raises(DataError, match="--robot"):
+        diagnose(log, robot="no_such_robot.urdf", simulate=False)
+    with pytest.raises(DataError, match="no joint of the log can be diagnosed"):
+        diagnose(log, robot="irb140", joints=[4], simulate=False)
+    notau = Log(t=log.t, q=log.q, joints=log.joints)
+    with pytest.raises(DataError, match="torque"):
+        diagnose(notau, simulate=False)
+
+
+def _axis_generator():
+    import importlib.util
+    from pathlib import Path
+    spec = importlib.util.spec_from_file_location(
+        "bench_diagnose", Path(__file__).parents[1] / "benchmarks" / "bench_diagnose.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.axis_log
+
+
+@pytest.mark.parametrize("effect, duration, rate", [("none", 120.0, 1000.0), ("asymmetric_coulomb", 300.0, 10.0),
+                                                    ("position_dependent_friction", 120.0, 200.0)])
+def test_logs_from_an_independent_generator(effect, duration, rate):
+    """A numpy single-axis simulation (not drake_est.synth; differently shaped effects), generic robot."""
+    log, truth = _axis_generator()(effect, seed=7, duration=duration, sample_rate=rate, noise_std=0.4)
+    rep = diagnose(log, robot="generic", simulate=False)
+    assert [f["effect"] for f in rep.findings] == truth["effects"]
+    assert rep.to_dict()["final"]["per_joint"]["1"]["rmse"] <= 1.2 * 0.4
