@@ -1,0 +1,219 @@
+"""``drake-est fit-friction LOG --model ... --joint J --out DIR``: identify a friction model
+(thesis Ch. 9), print validation metrics, write ``params.json`` and PNG plots."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from drake_est.errors import DataError, DrakeEstError
+
+MODEL_CHOICES = ("nominal", "position", "motor", "position+motor", "energy", "position+energy", "coupled")
+
+
+def register(sub):
+    p = sub.add_parser("fit-friction", help="identify a joint friction model from a log (thesis Ch. 9)",
+                       description="Fit a friction model to one joint of a log, validate it on the held-out end "
+                                   "of the log, and write params.json + PNG plots.")
+    p.add_argument("log", help="log file (.csv or .npz, drake_est format: t, q<j>, tau<j>, ...)")
+    p.add_argument("--model", default="nominal", choices=MODEL_CHOICES, help="model structure (default nominal)")
+    p.add_argument("--joint", type=int, default=None, help="1-based joint number (default: the joint that moves most)")
+    p.add_argument("--out", default="friction-fit", help="output folder (default ./friction-fit)")
+    p.add_argument("--nominal", default="asymmetric", choices=("coulomb", "viscous", "asymmetric"),
+                   help="nominal model: (9.1), (9.2) or direction-dependent (9.3) (default)")
+    p.add_argument("--robot", default="auto", choices=("auto", "irb140", "none"),
+                   help="subtract the rigid-body torque ID(q, dq, ddq) of this robot and take gear ratio/coupling "
+                        "from its metadata (auto: irb140 when the log has its 6 joints)")
+    p.add_argument("--gear-ratio", type=float, default=None, help="motor/arm gear ratio for --model motor")
+    p.add_argument("--holdout", type=float, default=0.3, help="fraction at the end held out for validation (0.3)")
+    p.add_argument("--v-min", type=float, default=None, help="drop |v| <= this [rad/s] (default 5%% of max |v|)")
+    p.add_argument("--a-max", type=float, default=None,
+                   help="drop |a| >= this [rad/s^2] (default 5x median |a|; not applied to excitation logs, "
+                        "where fewer than half the moving samples are steady and the full ID is subtracted)")
+    p.add_argument("--n-position", type=int, default=None, help="number of position basis functions (default: CV)")
+    p.add_argument("--width-factor", type=float, default=None, help="basis width / centre spacing (default: CV)")
+    p.add_argument("--energy-iters", type=int, default=50, help="Algorithm 6 iterations (default 50)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.set_defaults(func=run)
+
+
+def _robot(kind, log):
+    if kind == "none":
+        return None, None
+    if kind == "auto":
+        if log.n_joints != 6 or log.joints != [1, 2, 3, 4, 5, 6]:
+            return None, None
+        kind = "irb140"
+    from drake_est import robots
+
+    if log.joints != [1, 2, 3, 4, 5, 6]:
+        raise DataError(f"--robot irb140 needs all 6 joints in the log to compute ID(q, dq, ddq); log has {log.joints}")
+    return robots.irb140(), robots.irb140_metadata()
+
+
+def fit_log(log, model="nominal", joint=None, robot="auto", nominal="asymmetric", gear_ratio=None, holdout=0.3,
+            v_min=None, a_max=None, n_position=None, width_factor=None, energy_iters=50, truth=None):
+    """Fit from a :class:`drake_est.data.Log` (what the CLI does). Returns (FrictionResult, info dict)."""
+    from drake_est.identification.friction import fit_friction, friction_target, select_steady
+
+    if log.tau is None:
+        raise DataError("the log has no torque columns (tau<j>); friction cannot be identified")
+    log = log.with_derivatives()
+    if joint is None:
+        joint = log.joints[int(np.argmax(np.std(log.dq, axis=0)))]
+    col = log.col(joint)
+    rob, meta = _robot(robot, log)
+    # (9.9) on this joint and, for the coupled model, on the coupled joints too (their sign(v) terms)
+    sel_cols = [col]
+    if model == "coupled" and meta is not None:
+        from drake_est.identification.friction import coupled_joints
+        sel_cols += coupled_joints(meta.motor_from_arm, col)
+    sel = select_steady(log.dq[:, sel_cols], log.ddq[:, sel_cols], v_min=v_min, a_max=a_max)
+    # constant-velocity experiment (Sec. 9.6 sweep): keep (9.9) samples, subtract ID(q, dq, 0) only;
+    # otherwise (e.g. sinusoidal excitation: median |a| above 5 % of max |v| per second) subtract the full
+    # ID(q, dq, ddq) and keep accelerating samples
+    moving = np.abs(log.dq[:, col]) > sel.v_min
+    med_a = float(np.median(np.abs(log.ddq[moving, col]))) if np.any(moving) else 0.0
+    steady = rob is None or a_max is not None or med_a < 0.05 * float(np.quantile(np.abs(log.dq[:, col]), 0.99))
+    if not steady:
+        sel = select_steady(log.dq[:, sel_cols], log.ddq[:, sel_cols], v_min=v_min, a_max=np.inf)
+    y = friction_target(log, col, rob, inertia=not steady)
+    if gear_ratio is None and meta is not None:
+        gear_ratio = float(meta.gear_ratios[joint - 1])
+    coupling = None
+    if model == "coupled":
+        if meta is None:
+            raise DrakeEstError("the coupled model needs the robot's coupling matrix: use --robot irb140 with a "
+                                "6-joint log")
+        coupling = meta.motor_from_arm
+    res = fit_friction(log.t, log.q, log.dq, y, model=model, joint=col, nominal=nominal, gear_ratio=gear_ratio,
+                       coupling=coupling, holdout=holdout, selection=sel, n_position=n_position,
+                       width_factor=width_factor, energy_iters=energy_iters, truth=truth, joint_number=joint,
+                       joint_numbers=list(log.joints))
+    info = {"joint": joint, "column": col, "robot": None if meta is None else meta.name,
+            "rigid_body_subtracted": rob is not None, "gear_ratio": gear_ratio,
+            "inertia_subtracted": bool(rob is not None and not steady),
+            "experiment": "constant-velocity (9.9)" if steady else "excitation (ID subtracted)"}
+    return res, info
+
+
+def format_table(rows: dict) -> str:
+    """rows: name -> metrics dict; prints Fit/FPE/RMSE/MAE (and NPE) side by side."""
+    keys = [("fit", "Fit (%)", "{:9.3f}"), ("fpe", "FPE", "{:9.3e}"), ("rmse", "RMSE", "{:9.3e}"),
+            ("mae", "MAE", "{:9.3e}"), ("npe", "NPE", "{:9.3e}")]
+    names = list(rows)
+    lines = ["metric     " + " ".join(f"{n:>16s}" for n in names)]
+    for k, label, fmt in keys:
+        if not any(k in rows[n] for n in names):
+            continue
+        vals = [fmt.format(rows[n][k]) if k in rows[n] else "        -" for n in names]
+        lines.append(f"{label:10s} " + " ".join(f"{v:>16s}" for v in vals))
+    return "\n".join(lines)
+
+
+def plot_result(res, out_dir, prefix="", title=""):
+    """PNG plots: torque vs position and velocity with the model, residual histogram,
+    fit over time early (cold) and late (warm) in the log (cf. Fig. 9.8). Returns the paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    a = res.arrays
+    t, q, v, y, yhat, sel, train = a["t"], a["q"], a["dq"], a["y"], a["yhat"], a["selected"], a["train"]
+    val = sel & ~train
+    paths = []
+    # torque vs position and velocity
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+    for sgn, c in ((1, "tab:blue"), (-1, "tab:red")):
+        m = sel & (np.sign(v) == sgn)
+        ax[0].plot(q[m], y[m], ".", ms=1.5, color=c, alpha=0.3, label=f"data, v {'>' if sgn > 0 else '<'} 0")
+        order = np.argsort(q[m])
+        ax[0].plot(q[m][order], yhat[m][order], "-", lw=0.8, color="k" if sgn > 0 else "0.4")
+    ax[0].set_xlabel("joint position q [rad]")
+    ax[0].set_ylabel("friction torque [N m]")
+    ax[0].set_title("torque vs position (lines: model)")
+    ax[0].legend(loc="best", fontsize=8, markerscale=6)
+    ax[1].plot(v[sel], y[sel], ".", ms=1.5, alpha=0.3, label="data")
+    ax[1].plot(v[sel], yhat[sel], ".", ms=1.0, color="k", alpha=0.3, label="model")
+    ax[1].set_xlabel("joint velocity v [rad/s]")
+    ax[1].set_ylabel("friction torque [N m]")
+    ax[1].set_title("torque vs velocity")
+    ax[1].legend(loc="best", fontsize=8, markerscale=6)
+    fig.suptitle(title)
+    fig.tight_layout()
+    p = out_dir / f"{prefix}torque_vs_position_velocity.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    paths.append(p)
+    # residual histogram (validation block)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    r = y[val] - yhat[val]
+    ax.hist(r, bins=60, color="tab:gray")
+    ax.set_xlabel("validation residual y - F [N m]")
+    ax.set_ylabel("count")
+    ax.set_title(f"residuals on held-out data (RMSE {res.validation['rmse']:.3g} N m)")
+    fig.tight_layout()
+    p = out_dir / f"{prefix}residual_histogram.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    paths.append(p)
+    # fit over time, early and late (cold / warm)
+    span = max(0.05 * (t[-1] - t[0]), min(30.0, t[-1] - t[0]))
+    fig, ax = plt.subplots(2, 1, figsize=(10, 6))
+    for k, (t0, lab) in enumerate(((t[0], "early (cold)"), (t[-1] - span, "late (warm, held out)"))):
+        m = (t >= t0) & (t <= t0 + span)
+        ax[k].plot(t[m], y[m], ".", ms=2, color="0.5", label="measured")
+        ax[k].plot(t[m], np.where(sel[m], yhat[m], np.nan), "-", lw=1.0, color="tab:blue", label="model")
+        ax[k].set_ylabel("friction torque [N m]")
+        ax[k].set_title(lab)
+        ax[k].legend(loc="upper right", fontsize=8)
+    ax[1].set_xlabel("time [s]")
+    fig.tight_layout()
+    p = out_dir / f"{prefix}fit_over_time.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    paths.append(p)
+    return paths
+
+
+def run(args) -> int:
+    from drake_est.data import load_log
+
+    if not 0 < args.holdout < 1:
+        raise DrakeEstError(f"--holdout must be in (0, 1), got {args.holdout}")
+    log = load_log(args.log)
+    res, info = fit_log(log, model=args.model, joint=args.joint, robot=args.robot, nominal=args.nominal,
+                        gear_ratio=args.gear_ratio, holdout=args.holdout, v_min=args.v_min, a_max=args.a_max,
+                        n_position=args.n_position, width_factor=args.width_factor,
+                        energy_iters=args.energy_iters)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    print(f"joint {info['joint']}: model '{args.model}' ({res.model.n_params} linear parameters"
+          f"{', rigid-body torque subtracted (' + info['robot'] + ')' if info['rigid_body_subtracted'] else ''})")
+    print(res.selection.summary())
+    print(format_table({"training": res.train, "validation": res.validation}))
+    params = res.model.params()
+    print("parameters: " + ", ".join(f"{k}={v:.4g}" for k, v in params.items()))
+    doc = res.to_dict()
+    doc["log"] = str(args.log)
+    doc["info"] = info
+    doc["structure"].pop("energy_history", None)
+    (out / "params.json").write_text(json.dumps(doc, indent=2, default=_jsonable))
+    if not args.no_plots:
+        plot_result(res, out, title=f"joint {info['joint']}, model {args.model}")
+    print(f"wrote {out / 'params.json'}" + ("" if args.no_plots else " and PNG plots"))
+    return 0
+
+
+def _jsonable(x):
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.bool_):
+        return bool(x)
+    raise TypeError(f"not JSON serializable: {type(x)}")

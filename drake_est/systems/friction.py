@@ -1,0 +1,225 @@
+"""``FrictionModel``: identified joint friction as a Drake ``LeafSystem``.
+
+Ports
+-----
+* input ``joint_positions`` (n,) [rad]
+* input ``joint_velocities`` (n,) [rad/s]
+* output ``friction_torques`` (n,) [N m]
+
+Sign convention: the output is the friction torque F of the identification
+(thesis Eq. (9.8)): the torque the motor must supply to overcome friction, so that
+the measured motor torque is ``tau = ID(q, dq, ddq) + F``; F has the sign of the
+velocity. The torque friction exerts on the joint is ``-F``: to simulate a plant
+with this friction, feed ``u - F`` into its actuation input (e.g. through
+``Gain(-1)`` and an ``Adder``), see :func:`add_friction`.
+
+Each joint's friction is any :class:`drake_est.identification.friction.JointFriction`
+(Coulomb + viscous (9.2), direction-dependent Coulomb (9.3), position / motor-position
+expansions, gear-coupled wrist terms, energy models). Energy models (9.22)-(9.24) keep
+their signal E in a discrete state (one entry per joint), updated periodically with the
+ZOH recursion E <- a E + k_e (1 - a) |F v| driven by the friction power.
+
+The Coulomb term sign(v) is discontinuous; for continuous-time integration pass
+``sign_eps > 0`` [rad/s] to use tanh(v / sign_eps) instead (identification always
+uses the exact sign).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from drake_est.errors import DataError, DrakeEstError
+from drake_est.identification.friction import JointFriction
+
+
+def _as_models(models, n_joints):
+    if isinstance(models, JointFriction):
+        models = [models]
+    if isinstance(models, dict):
+        if n_joints is None:
+            n_joints = max(models) + 1
+        out = [None] * n_joints
+        for k, m in models.items():
+            if not 0 <= int(k) < n_joints:
+                raise DrakeEstError(f"friction model for joint index {k} outside 0..{n_joints - 1}")
+            out[int(k)] = m
+        models = out
+    models = list(models)
+    if n_joints is None:
+        n_joints = len(models)
+    if len(models) != n_joints:
+        raise DrakeEstError(f"{len(models)} friction models for {n_joints} joints")
+    fixed = []
+    for j, m in enumerate(models):
+        if m is None:
+            fixed.append(None)
+            continue
+        if isinstance(m, dict):
+            m = JointFriction.from_dict(m)
+        if not isinstance(m, JointFriction):
+            raise DrakeEstError(f"joint {j}: expected a JointFriction or its dict, got {type(m).__name__}")
+        if m.coef is None:
+            raise DrakeEstError(f"joint {j}: friction model is not fitted")
+        m = m.copy()
+        m.joint = j  # the model reads its own joint from column j of the plant's q, dq
+        fixed.append(m)
+    return fixed, n_joints
+
+
+class FrictionModel(LeafSystem):
+    """Joint friction torques F(q, dq[, E]) [N m] of ``n_joints`` joints.
+
+    Parameters
+    ----------
+    models : list (length n_joints) of JointFriction / its dict / None (no friction),
+        or a dict {0-based joint index: model}, or a single model for a 1-joint system.
+    n_joints : number of joints (default: from ``models``).
+    sign_eps : smoothing velocity for sign(v) [rad/s]; 0 = exact sign.
+    energy_period : update period of the energy state [s] (default: the energy model's h).
+    """
+
+    def __init__(self, models, n_joints: int | None = None, sign_eps: float = 0.0,
+                 energy_period: float | None = None):
+        super().__init__()
+        self._models, n = _as_models(models, n_joints)
+        self._n = n
+        self._sign_eps = float(sign_eps)
+        self.DeclareVectorInputPort("joint_positions", n)
+        self.DeclareVectorInputPort("joint_velocities", n)
+        self.DeclareVectorOutputPort("friction_torques", n, self._calc_torques)
+        self._energy_joints = [j for j, m in enumerate(self._models) if m is not None and m.energy is not None]
+        self._E_index = None
+        if self._energy_joints:
+            hs = [self._models[j].energy.h for j in self._energy_joints]
+            period = float(energy_period) if energy_period is not None else float(min(hs))
+            if period <= 0:
+                raise DrakeEstError(f"energy update period must be positive, got {period}")
+            self._period = period
+            E0 = np.zeros(n)
+            for j in self._energy_joints:
+                E0[j] = self._models[j].energy.E0
+            self._E_index = self.DeclareDiscreteState(BasicVector(E0))
+            self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_energy)
+            # ZOH coefficients at the update period (which may differ from the identification h)
+            self._ab = {}
+            for j in self._energy_joints:
+                e = self._models[j].energy
+                a = float(np.exp(-period / e.time_constant))
+                self._ab[j] = (a, e.gain * (1.0 - a))
+
+    # ------------------------------------------------------------------ helpers
+    @property
+    def n_joints(self) -> int:
+        return self._n
+
+    @property
+    def models(self) -> list:
+        return list(self._models)
+
+    def get_joint_positions_input_port(self):
+        return self.GetInputPort("joint_positions")
+
+    def get_joint_velocities_input_port(self):
+        return self.GetInputPort("joint_velocities")
+
+    def get_friction_torques_output_port(self):
+        return self.GetOutputPort("friction_torques")
+
+    def _E(self, context):
+        if self._E_index is None:
+            return np.zeros(self._n)
+        return context.get_discrete_state(self._E_index).CopyToVector()
+
+    def friction(self, q, v, E=None) -> np.ndarray:
+        """F(q, v, E) for one configuration (n,) -- the same numbers as the output port."""
+        q = np.asarray(q, float).reshape(1, -1)
+        v = np.asarray(v, float).reshape(1, -1)
+        if q.shape[1] != self._n or v.shape[1] != self._n:
+            raise DataError(f"expected {self._n} joint positions/velocities, got {q.shape[1]}/{v.shape[1]}")
+        E = np.zeros(self._n) if E is None else np.asarray(E, float)
+        F = np.zeros(self._n)
+        for j, m in enumerate(self._models):
+            if m is None:
+                continue
+            Ej = np.array([E[j]]) if m.energy is not None or any(t.needs_energy for t in m.terms) else None
+            F[j] = float(m.predict(q, v, Ej, sign_eps=self._sign_eps)[0])
+        return F
+
+    # ------------------------------------------------------------------ callbacks
+    def _qv(self, context):
+        q = self.get_input_port(0).Eval(context)
+        v = self.get_input_port(1).Eval(context)
+        return q, v
+
+    def _calc_torques(self, context, output):
+        q, v = self._qv(context)
+        output.SetFromVector(self.friction(q, v, self._E(context)))
+
+    def _update_energy(self, context, discrete_state):
+        q, v = self._qv(context)
+        E = self._E(context)
+        F = self.friction(q, v, E)
+        Enew = E.copy()
+        for j in self._energy_joints:
+            a, b = self._ab[j]
+            Enew[j] = a * E[j] + b * abs(F[j] * v[j])   # E <- a E + k_e (1 - a) W,  W = |F v|  (9.21), (9.24)
+        discrete_state.get_mutable_vector(self._E_index).SetFromVector(Enew)
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def coulomb_viscous(cls, kc, kv, kc_minus=None, sign_eps: float = 0.0) -> "FrictionModel":
+        """Plain Coulomb + viscous friction (9.2) per joint, or direction-dependent
+        Coulomb (9.3) when ``kc_minus`` is given (``kc`` is then kc+). Arrays of length n [N m], [N m s/rad]."""
+        kc = np.atleast_1d(np.asarray(kc, float))
+        kv = np.atleast_1d(np.asarray(kv, float))
+        if kc.shape != kv.shape:
+            raise DrakeEstError(f"kc has {kc.size} entries, kv has {kv.size}")
+        km = None if kc_minus is None else np.atleast_1d(np.asarray(kc_minus, float))
+        if km is not None and km.shape != kc.shape:
+            raise DrakeEstError(f"kc_minus has {km.size} entries, kc has {kc.size}")
+        models = [JointFriction.coulomb_viscous(kc[j], kv[j], joint=j, kc_minus=None if km is None else km[j])
+                  for j in range(kc.size)]
+        return cls(models, sign_eps=sign_eps)
+
+    @classmethod
+    def from_json(cls, path, n_joints: int | None = None, sign_eps: float = 0.0) -> "FrictionModel":
+        """Load models written by ``drake-est fit-friction`` (``params.json``: one model or
+        ``{"models": {"<0-based index>": model}}``)."""
+        d = json.loads(Path(path).read_text())
+        if "models" in d:
+            models = {int(k): v for k, v in d["models"].items()}
+        elif "model" in d:
+            idx = d["model"].get("joint", 0)
+            models = {int(idx): d["model"]}
+        else:
+            models = {int(d.get("joint", 0)): d}
+        return cls(models, n_joints=n_joints, sign_eps=sign_eps)
+
+
+def add_friction(builder, plant, friction: FrictionModel, actuation_source=None):
+    """Wire ``friction`` into ``plant``: its positions/velocities feed the friction
+    model and ``-F`` (plus ``actuation_source``'s output port, if given) drives the
+    plant's actuation. Returns the Adder (or Gain) that feeds the actuation."""
+    from pydrake.systems.primitives import Adder, Demultiplexer, Gain
+
+    n = friction.n_joints
+    if plant.num_positions() != n or plant.num_velocities() != n:
+        raise DrakeEstError(f"plant has {plant.num_positions()} positions, friction model has {n} joints")
+    builder.AddSystem(friction)
+    demux = builder.AddSystem(Demultiplexer([n, n]))
+    builder.Connect(plant.get_state_output_port(), demux.get_input_port(0))
+    builder.Connect(demux.get_output_port(0), friction.get_joint_positions_input_port())
+    builder.Connect(demux.get_output_port(1), friction.get_joint_velocities_input_port())
+    neg = builder.AddSystem(Gain(-1.0, n))
+    builder.Connect(friction.get_friction_torques_output_port(), neg.get_input_port())
+    if actuation_source is None:
+        builder.Connect(neg.get_output_port(), plant.get_actuation_input_port())
+        return neg
+    add = builder.AddSystem(Adder(2, n))
+    builder.Connect(actuation_source, add.get_input_port(0))
+    builder.Connect(neg.get_output_port(), add.get_input_port(1))
+    builder.Connect(add.get_output_port(), plant.get_actuation_input_port())
+    return add

@@ -1,0 +1,121 @@
+"""FrictionModel LeafSystem: ports, numbers, energy state, and use inside a MultibodyPlant diagram."""
+import numpy as np
+import pytest
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import RevoluteJoint, SpatialInertia, UnitInertia
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from drake_est.errors import DrakeEstError
+from drake_est.identification.friction import EnergyDynamics, JointFriction, build_model
+from drake_est.systems.friction import FrictionModel, add_friction
+
+
+def test_ports_and_coulomb_viscous_numbers():
+    fm = FrictionModel.coulomb_viscous(kc=[5.0, 2.0], kv=[2.0, 0.5])
+    assert fm.get_input_port(0).get_name() == "joint_positions"
+    assert fm.get_input_port(1).get_name() == "joint_velocities"
+    assert fm.get_output_port(0).get_name() == "friction_torques"
+    ctx = fm.CreateDefaultContext()
+    fm.get_input_port(0).FixValue(ctx, [0.1, 0.2])
+    fm.get_input_port(1).FixValue(ctx, [0.5, -1.0])
+    F = fm.get_output_port(0).Eval(ctx)
+    np.testing.assert_allclose(F, [5.0 + 2.0 * 0.5, -2.0 - 0.5], rtol=1e-12)
+
+
+def test_direction_dependent_coulomb():
+    fm = FrictionModel.coulomb_viscous(kc=[3.0], kv=[1.0], kc_minus=[4.0])
+    np.testing.assert_allclose(fm.friction([0.0], [0.2]), [3.0 + 0.2])
+    np.testing.assert_allclose(fm.friction([0.0], [-0.2]), [-4.0 - 0.2])
+    np.testing.assert_allclose(fm.friction([0.0], [0.0]), [0.0])
+
+
+def test_identified_model_matches_predict_and_roundtrips_json(tmp_path):
+    rng = np.random.default_rng(0)
+    q = rng.uniform(-2, 2, 3000)
+    v = rng.choice([-1, 1], 3000) * rng.uniform(0.1, 1.0, 3000)
+    y = 4 * np.sign(v) + 1.5 * v + 0.8 * np.sign(v) * np.exp(-((q - 0.5) / 0.3) ** 2) + 0.05 * rng.standard_normal(3000)
+    m = build_model("position", q, v, n_position=16, lam=1e-3).fit(q, v, y)
+    fm = FrictionModel([m])
+    for k in range(5):
+        np.testing.assert_allclose(fm.friction([q[k]], [v[k]]), m.predict(q[k:k + 1], v[k:k + 1]), rtol=1e-12)
+    import json
+    path = tmp_path / "params.json"
+    path.write_text(json.dumps({"model": m.to_dict()}))
+    fm2 = FrictionModel.from_json(path)
+    np.testing.assert_allclose(fm2.friction([0.4], [-0.3]), fm.friction([0.4], [-0.3]), rtol=1e-12)
+
+
+def test_energy_state_follows_friction_power():
+    m = JointFriction.coulomb_viscous(kc=10.0, kv=2.0)
+    m.energy = EnergyDynamics(gain=-0.2, time_constant=5.0, h=0.1)
+    fm = FrictionModel([m])
+    ctx = fm.CreateDefaultContext()
+    fm.get_input_port(0).FixValue(ctx, [0.0])
+    fm.get_input_port(1).FixValue(ctx, [1.0])
+    sim = Simulator(fm, ctx)
+    sim.AdvanceTo(30.0)
+    E = ctx.get_discrete_state(0).CopyToVector()[0]
+    # stationary point of E = k_e |F v| with F = 10 + 2 + E:  E = -0.2 (12 + E)  ->  E = -2.4 / 1.2
+    assert E == pytest.approx(-2.0, rel=0.02)
+    F = fm.get_output_port(0).Eval(ctx)[0]
+    assert F == pytest.approx(12.0 + E, rel=1e-9)
+
+
+def _disk_plant(builder, inertia=0.5):
+    plant = MultibodyPlant(0.0)
+    builder.AddSystem(plant)
+    body = plant.AddRigidBody("disk", SpatialInertia(1.0, np.zeros(3), UnitInertia(inertia, inertia, inertia)))
+    joint = plant.AddJoint(RevoluteJoint("spin", plant.world_frame(), body.body_frame(), [0, 0, 1]))
+    plant.AddJointActuator("motor", joint)
+    plant.mutable_gravity_field().set_gravity_vector([0, 0, 0])
+    plant.Finalize()
+    return plant
+
+
+def test_friction_decelerates_a_disk_like_the_ode():
+    """I dw/dt = -(kv w + kc) while w > 0: w(t) = (w0 + kc/kv) exp(-kv t / I) - kc/kv."""
+    I, kc, kv, w0 = 0.5, 0.4, 0.3, 3.0
+    builder = DiagramBuilder()
+    plant = _disk_plant(builder, I)
+    fm = FrictionModel.coulomb_viscous([kc], [kv])
+    add_friction(builder, plant, fm)
+    diagram = builder.Build()
+    sim = Simulator(diagram)
+    ctx = sim.get_mutable_context()
+    plant.SetVelocities(plant.GetMyMutableContextFromRoot(ctx), [w0])
+    sim.get_mutable_integrator().set_target_accuracy(1e-8)
+    T = 1.0
+    sim.AdvanceTo(T)
+    w = plant.GetVelocities(plant.GetMyContextFromRoot(ctx))[0]
+    expect = (w0 + kc / kv) * np.exp(-kv * T / I) - kc / kv
+    assert w == pytest.approx(expect, rel=1e-4)
+
+
+def test_irb140_diagram_with_identified_friction():
+    robots = pytest.importorskip("drake_est.robots")
+    builder, plant, _, _ = robots.add_irb140(DiagramBuilder(), time_step=1e-3)
+    meta = robots.irb140_metadata()
+    fm = FrictionModel.coulomb_viscous(meta.coulomb, meta.viscous, sign_eps=1e-2)
+    add_friction(builder, plant, fm)
+    diagram = builder.Build()
+    sim = Simulator(diagram)
+    ctx = sim.get_mutable_context()
+    pc = plant.GetMyMutableContextFromRoot(ctx)
+    v0 = np.zeros(6)
+    v0[0] = 1.0
+    plant.SetVelocities(pc, v0)
+    sim.AdvanceTo(0.3)
+    v = plant.GetVelocities(plant.GetMyContextFromRoot(ctx))
+    # joint 1 (vertical axis) is braked by its friction: 0 < v1 < 1
+    assert 0.0 <= v[0] < 0.95
+    F = fm.get_output_port(0).Eval(fm.GetMyContextFromRoot(ctx))
+    assert F.shape == (6,)
+
+
+def test_bad_inputs():
+    with pytest.raises(DrakeEstError):
+        FrictionModel.coulomb_viscous([1.0, 2.0], [1.0])
+    m = build_model("nominal", np.zeros(5), np.ones(5))
+    with pytest.raises(DrakeEstError, match="not fitted"):
+        FrictionModel([m])
