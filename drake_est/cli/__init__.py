@@ -25,12 +25,12 @@ from drake_est.errors import DrakeEstError  # noqa: E402
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _ArgumentParserExit2(
         prog="drake-est",
         description="System identification and estimation for robots, as Drake systems "
         "(methods of Bagge Carlson 2018).",
     )
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_ArgumentParserExit2)
     pkg = sys.modules[__name__]
     for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):
@@ -42,7 +42,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 class _ArgumentParserExit2(argparse.ArgumentParser):
-    pass
+    """Usage errors as one line on stderr (exit code 2), as promised for all bad input."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
 
 
 def main(argv=None) -> int:
@@ -58,6 +61,25 @@ def main(argv=None) -> int:
         return 2
     except FileNotFoundError as err:
         print(f"drake-est {args.command}: error: file not found: {err.filename or err}", file=sys.stderr)
+        return 2
+    except FileExistsError as err:
+        print(f"drake-est {args.command}: error: {err.filename or err} exists and is not a folder "
+              "(an output folder is needed here)", file=sys.stderr)
+        return 2
+    except NotADirectoryError as err:
+        print(f"drake-est {args.command}: error: {err.filename or err}: a part of this path is a file, "
+              "not a folder", file=sys.stderr)
+        return 2
+    except IsADirectoryError as err:
+        print(f"drake-est {args.command}: error: {err.filename or err} is a folder, expected a file", file=sys.stderr)
+        return 2
+    except PermissionError as err:
+        print(f"drake-est {args.command}: error: permission denied: {err.filename or err}", file=sys.stderr)
+        return 2
+    except UnicodeDecodeError:
+        name = getattr(args, "log", None) or getattr(args, "data", None) or "input file"
+        print(f"drake-est {args.command}: error: {name} is not a text CSV (binary or wrong encoding; "
+              "expected a UTF-8 CSV with a header, or an NPZ)", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"drake-est {args.command}: interrupted", file=sys.stderr)

@@ -29,7 +29,7 @@ POSE_COLS = [f"r{i}{j}" for i in range(1, 4) for j in range(1, 4)] + ["px", "py"
 
 def register(sub):
     p = sub.add_parser("calibrate", help="calibrate a wrist F/T sensor or laser scanner from logged data (Ch. 13)",
-                       description=__doc__, formatter_class=__import__("argparse").RawDescriptionHelpFormatter)
+                       description=__doc__.replace("``", ""), formatter_class=__import__("argparse").RawDescriptionHelpFormatter)
     p.add_argument("sensor", choices=["ft", "laser"], help="which sensor")
     p.add_argument("data", help="NPZ or CSV file (layout above)")
     p.add_argument("--out", default="calibration-out", help="output folder (JSON, histogram PNG)")
@@ -51,11 +51,16 @@ def register(sub):
 
 def _read_table(path: Path) -> dict:
     if path.suffix.lower() == ".npz":
-        with np.load(path, allow_pickle=False) as z:
-            return {k: z[k] for k in z.files}
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                return {k: z[k] for k in z.files}
+        except (ValueError, OSError, EOFError) as err:
+            raise DataError(f"{path}: not a readable NPZ file of numeric arrays ({type(err).__name__})") from None
     if path.suffix.lower() == ".csv":
         with open(path) as fh:
             header = fh.readline().strip().split(",")
+            if not any(line.strip() for line in fh):
+                raise DataError(f"{path}: no data rows (the file is empty or has only a header)")
         header = [h.strip() for h in header]
         try:
             arr = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
@@ -103,6 +108,7 @@ def _hist(residuals, xlabel, path, title):
 
     r = np.asarray(residuals).ravel()
     r = r[np.isfinite(r)]
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.hist(r, bins=60, color="C0", alpha=0.8)
     ax.set_xlabel(xlabel)
@@ -116,7 +122,10 @@ def _hist(residuals, xlabel, path, title):
 def _parse_T0(text):
     from drake_est.calibration.so3 import make_pose, rpy_to_matrix
 
-    vals = [float(v) for v in text.replace(",", " ").split()]
+    try:
+        vals = [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise DataError(f"--T0 needs 6 numbers 'x y z roll pitch yaw' [m, deg], got '{text}'") from None
     if len(vals) != 6:
         raise DataError(f"--T0 needs 6 numbers 'x y z roll pitch yaw' [m, deg], got {len(vals)}")
     return make_pose(rpy_to_matrix(np.radians(vals[3:])), vals[:3])
@@ -128,8 +137,18 @@ def run(args) -> int:
     path = Path(args.data)
     if not path.exists():
         raise DataError(f"data file not found: {path}")
+    if path.is_dir():
+        raise DataError(f"{path} is a folder, expected a .npz or .csv data file")
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and not out.is_dir():
+        raise DataError(f"--out {args.out} exists and is not a folder")
+    for name, val, lo in (("--iters", args.iters, 1), ("--min-planes", args.min_planes, 1)):
+        if val < lo:
+            raise DataError(f"{name} must be >= {lo}, got {val}")
+    for name, val in (("--length-scale", args.length_scale), ("--assign-threshold", args.assign_threshold),
+                      ("--mass", args.mass)):
+        if val is not None and not val > 0:
+            raise DataError(f"{name} must be > 0, got {val}")
     tab = _read_table(path)
     scale = args.length_scale
     np.set_printoptions(precision=5, suppress=True)
@@ -207,6 +226,7 @@ def run(args) -> int:
     for w in caught:
         print(f"warning: {w.message}")
     summ["warnings"] = [str(w.message) for w in caught]
+    out.mkdir(parents=True, exist_ok=True)
     (out / f"calibrate_{args.sensor}.json").write_text(json.dumps(summ, indent=2))
     print(f"wrote {out}/calibrate_{args.sensor}.json and a residual histogram")
     return 0

@@ -15,7 +15,11 @@ def register(sub):
 def run(args) -> int:
     from drake_est.data import load_log
 
+    from drake_est.errors import DataError
+
     limits = None
+    if args.robot is not None and args.robot != "irb140":
+        raise DataError(f"--robot must be 'irb140' (the only robot with known joint limits), got '{args.robot}'")
     if args.robot == "irb140":
         from drake_est.robots import irb140_metadata
 

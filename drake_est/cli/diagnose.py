@@ -20,6 +20,7 @@ def register(sub):
     p.add_argument("--out", default=None, help="output folder (default: a new ./diagnosis-N folder)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--no-simulation", action="store_true", help="skip the windowed forward simulations")
+    p.add_argument("--drop-invalid", action="store_true", help="drop rows with NaN/inf (counted) instead of failing")
     p.set_defaults(func=run)
 
 
@@ -52,10 +53,15 @@ def run(args) -> int:
     from drake_est.diagnose import diagnose
 
     joints = _joints(args.joints)
-    log = load_log(args.log)
+    out = _new_dir(args.out)
+    limits = None
+    if args.robot == "irb140":
+        from drake_est.robots import irb140_metadata
+
+        limits = irb140_metadata().limits_dict()
+    log = load_log(args.log, limits=limits, nan_policy="drop" if args.drop_invalid else "raise")
     rep = diagnose(log, robot=args.robot, joints=joints, seed=args.seed, simulate=not args.no_simulation,
                    source=str(args.log))
-    out = _new_dir(args.out)
     rep.write(out)
     print(rep.summary())
     print(f"report: {out / 'report.md'} (numbers in {out / 'report.json'})")

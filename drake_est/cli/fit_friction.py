@@ -35,6 +35,7 @@ def register(sub):
     p.add_argument("--width-factor", type=float, default=None, help="basis width / centre spacing (default: CV)")
     p.add_argument("--energy-iters", type=int, default=50, help="Algorithm 6 iterations (default 50)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--drop-invalid", action="store_true", help="drop rows with NaN/inf (counted) instead of failing")
     p.set_defaults(func=run)
 
 
@@ -63,6 +64,13 @@ def fit_log(log, model="nominal", joint=None, robot="auto", nominal="asymmetric"
     if joint is None:
         joint = log.joints[int(np.argmax(np.std(log.dq, axis=0)))]
     col = log.col(joint)
+    span = float(np.ptp(log.q[:, col]))
+    if span < 0.02 or float(np.quantile(np.abs(log.dq[:, col]), 0.95)) < 1e-3:
+        raise DataError(f"joint {joint} is not excited (position range {span:.3g}, it holds still); "
+                        f"friction cannot be identified -- pick a moving joint with --joint")
+    if v_min is not None and v_min >= float(np.max(np.abs(log.dq[:, col]))):
+        raise DataError(f"--v-min {v_min:g} rad/s is above the largest speed of joint {joint} "
+                        f"({float(np.max(np.abs(log.dq[:, col]))):.3g} rad/s): no sample would be kept")
     rob, meta = _robot(robot, log)
     # (9.9) on this joint and, for the coupled model, on the coupled joints too (their sign(v) terms)
     sel_cols = [col]
@@ -185,12 +193,25 @@ def run(args) -> int:
 
     if not 0 < args.holdout < 1:
         raise DrakeEstError(f"--holdout must be in (0, 1), got {args.holdout}")
-    log = load_log(args.log)
+    for name, val, lo, strict in (("--gear-ratio", args.gear_ratio, 0, True), ("--v-min", args.v_min, 0, False),
+                                  ("--a-max", args.a_max, 0, True), ("--n-position", args.n_position, 1, False),
+                                  ("--width-factor", args.width_factor, 0, True),
+                                  ("--energy-iters", args.energy_iters, 1, False)):
+        if val is not None and not (val > lo if strict else val >= lo):
+            raise DrakeEstError(f"{name} must be {'>' if strict else '>='} {lo}, got {val}")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise DrakeEstError(f"--out {args.out} exists and is not a folder")
+    nan_policy = "drop" if args.drop_invalid else "raise"
+    log = load_log(args.log, nan_policy=nan_policy)
+    if args.robot == "irb140" or (args.robot == "auto" and log.joints == [1, 2, 3, 4, 5, 6]):
+        from drake_est.robots import irb140_metadata
+
+        log = load_log(args.log, limits=irb140_metadata().limits_dict(), nan_policy=nan_policy)   # refuse degrees before using ID
     res, info = fit_log(log, model=args.model, joint=args.joint, robot=args.robot, nominal=args.nominal,
                         gear_ratio=args.gear_ratio, holdout=args.holdout, v_min=args.v_min, a_max=args.a_max,
                         n_position=args.n_position, width_factor=args.width_factor,
                         energy_iters=args.energy_iters)
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     print(f"joint {info['joint']}: model '{args.model}' ({res.model.n_params} linear parameters"
           f"{', rigid-body torque subtracted (' + info['robot'] + ')' if info['rigid_body_subtracted'] else ''})")

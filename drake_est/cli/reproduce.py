@@ -24,19 +24,25 @@ def run(args) -> int:
     if not args.name:
         print("Available experiments:")
         for name in sorted(exps):
-            doc = (exps[name].__doc__ or "").strip().splitlines()
-            print(f"  {name:22s} {doc[0] if doc else ''}")
+            doc = (exps[name].__doc__ or "").strip().split("\n\n")[0]   # first paragraph, not its first line
+            print(f"  {name:22s} {' '.join(doc.split())}")
+        print("Run one with: drake-est reproduce NAME [--quick] [--out DIR]")
         return 0
     if args.name not in exps:
         raise DrakeEstError(f"unknown experiment '{args.name}'; choose one of: {', '.join(sorted(exps))}")
     out = Path(args.out or f"reproduce-{args.name}")
+    if out.exists() and not out.is_dir():
+        raise DrakeEstError(f"--out {out} exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
     kwargs = dict(out_dir=out, quick=args.quick, seed=args.seed)
     if args.data is not None:
         kwargs["data_dir"] = args.data
     result = exps[args.name](**kwargs)
     path = out / f"{args.name}.json"
+    if isinstance(result, dict):
+        result = {**result, "run": {"quick": bool(args.quick), "seed": args.seed}}
     dump_json(result, path)
-    print(f"wrote {path} and figures in {out}/")
+    print(f"wrote {path} and figures in {out}/" + (" (--quick: smaller sizes, numbers differ from the full run)"
+                                                    if args.quick else ""))
     return 0
 

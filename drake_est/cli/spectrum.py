@@ -36,6 +36,7 @@ def register(sub):
                    help="regressors removed jointly (default: coulomb-viscous when a schedule is given)")
     p.add_argument("--gear-ratio", type=float, default=None, help="motor revolutions per position revolution, "
                    "only for reporting cycles per motor revolution")
+    p.add_argument("--drop-invalid", action="store_true", help="drop rows with NaN/inf (counted) instead of failing")
     p.add_argument("--level", type=float, default=0.95, help="confidence level of the bands (default 0.95)")
     p.set_defaults(func=run)
 
@@ -57,7 +58,16 @@ def run(args) -> int:
     from drake_est.spectral.detect import find_periodic_components
     from drake_est.spectral.plots import plot_amplitude_functions, plot_scan
 
-    log = load_log(args.log, require_tau=False)
+    for name, val in (("--f-max", args.f_max), ("--gear-ratio", args.gear_ratio)):
+        if val is not None and not val > 0:
+            raise DataError(f"{name} must be > 0, got {val}")
+    if not 0 < args.level < 1:
+        raise DataError(f"--level must be in (0, 1), e.g. 0.95, got {args.level}")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise DataError(f"--out {args.out} exists and is not a folder")
+    log = load_log(args.log, require_tau=False, nan_policy="drop" if args.drop_invalid else "raise")
+
     def column(opt, name):
         try:
             return np.asarray(log.column(name), dtype=float)
@@ -67,6 +77,9 @@ def run(args) -> int:
     y = column("--signal", args.signal)
     x = column("--position", args.position)
     v = None if args.schedule is None else column("--schedule", args.schedule)
+    if np.ptp(x) <= 0.02:
+        raise DataError(f"position column '{args.position}' barely moves (range {np.ptp(x):.3g}); "
+                        "a spectrum over position needs a column that sweeps a range")
     if v is not None and np.ptp(v) <= 0:
         raise DataError(f"scheduling column '{args.schedule}' is constant; drop --schedule")
     base_kind = args.base or ("coulomb-viscous" if v is not None else "none")
@@ -78,7 +91,6 @@ def run(args) -> int:
     pc = find_periodic_components(x, y, schedule=v, n_components=args.n_components, n_basis=args.n_basis,
                                   f_max=args.f_max, base=base)
     gear = args.gear_ratio or _gear_from_meta(log, args.position)
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if gear:
         scale, unit = 2 * np.pi / gear, "cycles per motor revolution"

@@ -41,6 +41,10 @@ def run(args) -> int:
     effects = args.effect or ["none"]
     if args.duration is not None and args.duration < 5:
         raise DrakeEstError(f"--duration {args.duration} s is too short (at least 5 s)")
+    if args.noise is not None and not args.noise >= 0:
+        raise DrakeEstError(f"--noise {args.noise} N m must be >= 0")
+    if Path(args.out).is_dir():
+        raise DrakeEstError(f"--out {args.out} is a folder; give a file name ending in .csv or .npz")
     if args.rate <= 0 or args.rate > 5000:
         raise DrakeEstError(f"--rate {args.rate} Hz is outside (0, 5000]")
     log, truth = synthesize(effects if len(effects) > 1 else effects[0], seed=args.seed, joints=parse_joints(args.joints),
