@@ -211,13 +211,18 @@ def smooth_derivatives(t, q, window_s: float | None = None, polyorder: int = 3, 
 
 
 def _read_csv(path: Path):
-    with open(path, newline="") as f:
+    with open(path, newline="", encoding="utf-8-sig") as f:  # utf-8-sig: tolerate Excel's byte-order mark
         reader = csv.reader(f)
         try:
             header = next(reader)
         except StopIteration:
             raise DataError(f"{path}: file is empty") from None
         header = [h.strip() for h in header]
+        if len(header) == 1:
+            for sep, name in ((";", "semicolons"), ("\t", "tabs"), (" ", "spaces")):
+                if sep in header[0]:
+                    raise DataError(f"{path}: the header is separated by {name}; the format wants commas "
+                                    f"(t,q1,tau1,...)")
         if not any(header):
             raise DataError(f"{path}: first line must be a header naming the columns (t, q1, tau1, ...)")
         dup = sorted({h for h in header if header.count(h) > 1})
@@ -253,10 +258,16 @@ def _read_npz(path: Path):
         raise DataError(f"{path}: not a readable NPZ file ({err.__class__.__name__})") from None
     cols, meta = {}, {}
     for k in z.files:
+        try:
+            val = z[k]
+        except ValueError:
+            raise DataError(f"{path}: array '{k}' holds Python objects; save plain numeric arrays") from None
         if k == "meta_json":
-            meta = json.loads(str(z[k]))
+            meta = json.loads(str(val))
             continue
-        arr = np.asarray(z[k])
+        arr = np.asarray(val)
+        if arr.dtype.kind not in "fiub":
+            raise DataError(f"{path}: array '{k}' is not numeric (dtype {arr.dtype})")
         if arr.ndim != 1:
             raise DataError(f"{path}: array '{k}' must be 1-D (one channel), got shape {arr.shape}")
         cols[k] = arr.astype(float)

@@ -308,6 +308,9 @@ def synthesize(effect="none", seed: int = 0, joints=None, duration: float | None
     noise_std : torque noise [N m] (default: random in 0.2-0.6 N m; the thesis' simulation uses 0.5).
     encoder_counts_per_motor_rev : position quantization at the motor (arm step 2 pi / (counts g)).
 
+    The first second (controller start-up transient) is not logged, so a log of ``duration`` seconds
+    holds ``duration - 1`` seconds of data, with time starting at 0.
+
     Returns ``(log, truth)``: the :class:`~drake_est.data.Log` (t, q, tau, quantized q, no derivatives)
     and a dict with the true friction parameters, the effect parameters, the noise level and the
     noise-free friction torque."""

@@ -218,6 +218,11 @@ def run(args) -> int:
             if res.n_excluded:
                 print(f"excluded {res.n_excluded} points (NaN or not assigned to a plane)")
             print(f"condition number {res.condition:.3g} (weakest parameter {res.weak_parameter})")
+            if not res.rms < res.history_rms[0]:
+                warnings.warn(f"calibration did not improve on the initial guess (RMS {res.rms * 1e3:.4g} mm vs "
+                              f"{res.history_rms[0] * 1e3:.4g} mm): the result is not trustworthy"
+                              + ("; the automatic plane assignment may have failed, give plane labels "
+                                 "(column/array 'plane')" if labels is None else "; try a better --T0"))
             if res.condition > 1e4:
                 warnings.warn(f"poses excite the sensor transform poorly (condition number {res.condition:.3g}); "
                               f"weakest parameter {res.weak_parameter}: add poses that change it")

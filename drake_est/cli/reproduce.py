@@ -42,7 +42,35 @@ def run(args) -> int:
     if isinstance(result, dict):
         result = {**result, "run": {"quick": bool(args.quick), "seed": args.seed}}
     dump_json(result, path)
+    if isinstance(result, dict):
+        lines = _scalar_lines(result)
+        if lines:
+            print(f"{args.name}: key numbers (all of them in {path.name})")
+            for line in lines[:25]:
+                print(f"  {line}")
+            if len(lines) > 25:
+                print(f"  ... {len(lines) - 25} more in {path.name}")
     print(f"wrote {path} and figures in {out}/" + (" (--quick: smaller sizes, numbers differ from the full run)"
                                                     if args.quick else ""))
     return 0
 
+
+
+def _scalar_lines(d, prefix="", depth=0) -> list:
+    """'a.b = 1.23' lines for the numbers and short strings of a nested result dict (not lists/arrays)."""
+    import numpy as np
+
+    out = []
+    for k, v in d.items():
+        if k == "run":
+            continue
+        key = f"{prefix}{k}"
+        if isinstance(v, dict) and depth < 2:
+            out += _scalar_lines(v, key + ".", depth + 1)
+        elif isinstance(v, (bool, np.bool_)):
+            out.append(f"{key} = {bool(v)}")
+        elif isinstance(v, (int, float, np.integer, np.floating)):
+            out.append(f"{key} = {float(v):.4g}")
+        elif isinstance(v, str) and len(v) < 60:
+            out.append(f"{key} = {v}")
+    return out

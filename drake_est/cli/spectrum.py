@@ -32,8 +32,10 @@ def register(sub):
     p.add_argument("--n-basis", type=int, default=6, help="basis functions over the schedule (default 6)")
     p.add_argument("--f-max", type=float, default=None,
                    help="highest frequency to scan, cycles per unit position (default: sampling-density limit, capped)")
-    p.add_argument("--base", choices=("coulomb-viscous", "none"), default=None,
-                   help="regressors removed jointly (default: coulomb-viscous when a schedule is given)")
+    p.add_argument("--base", choices=("inertia-coulomb-viscous", "coulomb-viscous", "none"), default=None,
+                   help="regressors removed jointly: [ddq, sign(v), v] (default when the position is a joint q<j> "
+                        "and a schedule is given: the joint's inertia must not leak into the spectrum), "
+                        "[sign(v), v] (default for other positions with a schedule) or none")
     p.add_argument("--gear-ratio", type=float, default=None, help="motor revolutions per position revolution, "
                    "only for reporting cycles per motor revolution")
     p.add_argument("--drop-invalid", action="store_true", help="drop rows with NaN/inf (counted) instead of failing")
@@ -82,12 +84,20 @@ def run(args) -> int:
                         "a spectrum over position needs a column that sweeps a range")
     if v is not None and np.ptp(v) <= 0:
         raise DataError(f"scheduling column '{args.schedule}' is constant; drop --schedule")
-    base_kind = args.base or ("coulomb-viscous" if v is not None else "none")
+    joint_pos = re.match(r"^q(\d+)$", args.position)
+    if args.base is None:
+        base_kind = "none" if v is None else ("inertia-coulomb-viscous" if joint_pos else "coulomb-viscous")
+    else:
+        base_kind = args.base
     base = None
-    if base_kind == "coulomb-viscous":
+    if base_kind != "none":
         if v is None:
-            raise DataError("--base coulomb-viscous needs --schedule (the velocity)")
+            raise DataError(f"--base {base_kind} needs --schedule (the velocity)")
         base = np.column_stack([np.sign(v), v])
+    if base_kind == "inertia-coulomb-viscous":
+        if not joint_pos:
+            raise DataError("--base inertia-coulomb-viscous needs a joint position column q<j> (for its acceleration)")
+        base = np.column_stack([base, column("--position", f"ddq{joint_pos.group(1)}")])
     pc = find_periodic_components(x, y, schedule=v, n_components=args.n_components, n_basis=args.n_basis,
                                   f_max=args.f_max, base=base)
     gear = args.gear_ratio or _gear_from_meta(log, args.position)

@@ -17,7 +17,7 @@ def register(sub):
                    help=f"hidden effect (repeatable): none, {', '.join(EFFECTS)}")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--joints", default=None, help="comma-separated 1-based joints that move (default depends on effect)")
-    p.add_argument("--duration", type=float, default=None, help="seconds (default 300, 900 with the energy effect)")
+    p.add_argument("--duration", type=float, default=None, help="simulated seconds (default 300, 900 with the energy effect); the first second, the controller's start-up, is not logged")
     p.add_argument("--rate", type=float, default=100.0, help="sample rate [Hz] (default 100)")
     p.add_argument("--experiment", choices=["sweep", "excitation"], default=None, help="trajectory type")
     p.add_argument("--noise", type=float, default=None, help="torque noise std [N m] (default random 0.2-0.6)")

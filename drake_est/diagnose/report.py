@@ -226,7 +226,8 @@ class DiagnosisReport:
             lines.append(f"FOUND {f['effect']} (joint {f['joint']}{extra}): p = {ev['p_value']:.2g}, held-out RMSE "
                          f"{f['validation']['rmse']:.4g} N m, gain x{f['gain']['rmse_ratio']:.3g}")
         fv = d["final"]["validation"]
-        lines.append(f"final model {d['final']['effects'] or '(nominal)'}: held-out RMSE {fv['rmse']:.4g} N m, "
+        named = ", ".join(f"{f['effect']} (joint {f['joint']})" for f in d["findings"]) or "(nominal)"
+        lines.append(f"final model {named}: held-out RMSE {fv['rmse']:.4g} N m, "
                      f"Fit {fv['fit']:.1f} %, gain x{d['final']['gain']['rmse_ratio']:.3g}")
         return "\n".join(lines)
 
