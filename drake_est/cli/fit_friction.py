@@ -139,11 +139,12 @@ def plot_result(res, out_dir, prefix="", title=""):
     for sgn, c in ((1, "tab:blue"), (-1, "tab:red")):
         m = sel & (np.sign(v) == sgn)
         ax[0].plot(q[m], y[m], ".", ms=1.5, color=c, alpha=0.3, label=f"data, v {'>' if sgn > 0 else '<'} 0")
-        order = np.argsort(q[m])
-        ax[0].plot(q[m][order], yhat[m][order], "-", lw=0.8, color="k" if sgn > 0 else "0.4")
+        # model at the measured (q, v) of each sample: points, since samples at one q have different v
+        ax[0].plot(q[m], yhat[m], ".", ms=0.8, color="k" if sgn > 0 else "0.35",
+                   label=f"model, v {'>' if sgn > 0 else '<'} 0")
     ax[0].set_xlabel("joint position q [rad]")
     ax[0].set_ylabel("friction torque [N m]")
-    ax[0].set_title("torque vs position (lines: model)")
+    ax[0].set_title("torque vs position (black/grey: model)")
     ax[0].legend(loc="best", fontsize=8, markerscale=6)
     ax[1].plot(v[sel], y[sel], ".", ms=1.5, alpha=0.3, label="data")
     ax[1].plot(v[sel], yhat[sel], ".", ms=1.0, color="k", alpha=0.3, label="model")
