@@ -43,6 +43,15 @@ def register(sub):
     p.set_defaults(func=run)
 
 
+def _unit(column: str) -> str:
+    """Units of the drake_est data format's joint columns (rad, rad/s, N m; m, m/s, N for linear axes)."""
+    for pattern, unit in ((r"^q\d+$", " [rad or m]"), (r"^dq\d+$", " [rad/s or m/s]"), (r"^ddq\d+$", " [rad/s^2]"),
+                          (r"^tau\d+$", " [N m or N]")):
+        if re.match(pattern, column):
+            return unit
+    return ""
+
+
 def _gear_from_meta(log, position):
     m = re.match(r"^q(\d+)$", position)
     if not m or str(log.meta.get("robot", "")).lower() != "irb140":
@@ -114,7 +123,8 @@ def run(args) -> int:
     if v is not None:
         labels = [f"{f * scale:.4g} {'/motor rev' if gear else '/rad'}" for f in pc.freqs]
         plot_amplitude_functions(pc.model, v, out / "amplitude.png", level=args.level, labels=labels,
-                                 v_label=f"{args.schedule}", amp_label=f"amplitude of {args.signal}")
+                                 v_label=f"{args.schedule}{_unit(args.schedule)}",
+                                 amp_label=f"amplitude of {args.signal}{_unit(args.signal)}")
         files.append("amplitude.png")
     result = {
         "log": str(args.log), "signal": args.signal, "position": args.position, "schedule": args.schedule,
