@@ -32,6 +32,10 @@ def run(args) -> int:
         if log.tau is not None:
             line += f", tau in [{log.tau[:, i].min():.3f}, {log.tau[:, i].max():.3f}]"
         print(line)
+    dt = float(np.median(np.diff(log.t)))
+    if dt >= 0.5:
+        print(f"  note: the median sample interval is {dt:.3g} s; if the time column is in milliseconds, "
+              f"divide it by 1000 (the format wants seconds)")
     if log.channels:
         print(f"  other channels: {', '.join(log.channels)}")
     excl = log.meta.get("excluded_rows")
