@@ -290,12 +290,16 @@ def real_yumi_ft(out_dir, quick: bool = False, seed: int = 0, data_dir=None, **k
     fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     t = val_idx
     for k, c in enumerate("xyz"):
-        ax[0].plot(t, W_all[val_idx, k], color=f"C{k}", lw=0.8, label=f"f{c} measured")
-        ax[0].plot(t, pred_val[:, k], color=f"C{k}", lw=0.8, ls="--")
+        ax[0].plot(t, W_all[val_idx, k], color=f"C{k}", lw=0.8, alpha=0.45, label=f"f{c} measured")
+    for k, c in enumerate("xyz"):
+        ax[0].plot(t, pred_val[:, k], color="k", lw=1.1, ls=(0, (4, 2)), zorder=3,
+                   label="calibrated model" if k == 0 else None)
     ax[0].set_ylabel("force [N]")
-    ax[0].set_title("YuMi F/T log, held-out second half: measured (solid) vs calibrated model (dashed)")
-    ax[0].legend(ncol=3, fontsize=8)
-    ax[1].plot(t, r_val[:, :3], lw=0.6)
+    ax[0].set_title("YuMi F/T log, held-out second half: measured (colour) vs calibrated model (black dashed)")
+    ax[0].legend(ncol=4, fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.04), frameon=False)
+    for k, c in enumerate("xyz"):
+        ax[1].plot(t, r_val[:, k], color=f"C{k}", lw=0.6, label=f"f{c}")
+    ax[1].legend(ncol=3, fontsize=8, loc="upper left")
     ax[1].set_ylabel("force residual [N]")
     ax[1].set_xlabel("sample")
     fig.tight_layout()

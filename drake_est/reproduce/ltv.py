@@ -41,12 +41,12 @@ def ltv_jump(out_dir, quick=False, seed=0, lam=20.0, n_seeds=None, **kw):
     for i in range(2):
         for j in range(2):
             ax.plot(g.A[:, i, j], label=f"A[{i + 1},{j + 1}] (7.6)")
-            ax.plot(A[:, i, j], "k--", lw=1)
+            ax.plot(A[:, i, j], "k--", lw=1, label="truth" if i == j == 0 else None)
     ax.axvline(t_gl, color="r", lw=0.8, ls=":", label=f"detected change t={t_gl}")
     ax.set_xlabel("time index t")
     ax.set_ylabel("coefficient of A_t [-]")
-    ax.set_title(f"Fig. 7.1: piecewise-constant dynamics, group lasso lambda={lam:g} (truth dashed)")
-    ax.legend(fontsize=7, ncol=3)
+    ax.set_title(f"Fig. 7.1: jump-linear system, group lasso (7.6), lambda={lam:g}", fontsize=10)
+    ax.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
     fig.tight_layout()
     fig.savefig(out_dir / "ltv_jump_fig7_1.png", dpi=120)
     plt.close(fig)
@@ -113,22 +113,28 @@ def ltv_drift(out_dir, quick=False, seed=0, T=None, **kw):
     plt.close(fig)
     # Fig. 7.3
     pred_err, model_err = {}, {}
-    fig, axes = plt.subplots(2, 4, figsize=(11, 5))
+    fig = plt.figure(figsize=(11, 6.5))
+    gs = fig.add_gridspec(2, 4)
+    top = [fig.add_subplot(gs[0, 0:2]), fig.add_subplot(gs[0, 2:4])]
+    qq = [fig.add_subplot(gs[1, c]) for c in range(4)]
     for c, lam in enumerate(show):
         r = fits[lam]
         e = (x[1:] - r.predict(x[:-1], u)).reshape(-1)
         pred_err[lam] = float(np.mean(e ** 2))
         model_err[lam] = float(np.mean(np.sum((r.A - A) ** 2, axis=(1, 2)) + np.sum((r.B - B) ** 2, axis=(1, 2))))
-        stats.probplot(e, dist="norm", plot=axes[1, c])
-        axes[1, c].set_title(f"Q-Q, lambda={lam:g}", fontsize=8)
-    axes[0, 0].loglog(show, [pred_err[l] for l in show], "o-")
-    axes[0, 0].set_xlabel("lambda")
-    axes[0, 0].set_ylabel("mean squared prediction error")
-    axes[0, 1].loglog(show, [model_err[l] for l in show], "o-")
-    axes[0, 1].set_xlabel("lambda")
-    axes[0, 1].set_ylabel("mean squared model error")
-    for ax in axes[0, 2:]:
-        ax.axis("off")
+        stats.probplot(e, dist="norm", plot=qq[c])
+        qq[c].set_title(f"Q-Q, lambda={lam:g}", fontsize=9)
+        qq[c].set_ylabel("ordered residuals" if c == 0 else "")
+        qq[c].set_xlabel("theoretical quantiles", fontsize=9)
+        qq[c].tick_params(labelsize=8)
+    top[0].loglog(show, [pred_err[l] for l in show], "o-")
+    top[0].set_ylabel("mean squared prediction error")
+    top[1].loglog(show, [model_err[l] for l in show], "o-")
+    top[1].set_ylabel("mean squared model error")
+    for ax in top:
+        ax.set_xlabel("lambda")
+        ax.tick_params(which="minor", labelsize=7)
+        ax.grid(True, which="major", alpha=0.3)
     fig.suptitle("Fig. 7.3: prediction and model errors on training data")
     fig.tight_layout()
     fig.savefig(out_dir / "ltv_drift_fig7_3.png", dpi=120)
