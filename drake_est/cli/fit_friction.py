@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_est.errors import DataError, DrakeEstError
+from drake_est.jsonutil import to_jsonable
 
 MODEL_CHOICES = ("nominal", "position", "motor", "position+motor", "energy", "position+energy", "coupled")
 
@@ -224,18 +225,9 @@ def run(args) -> int:
     doc["log"] = str(args.log)
     doc["info"] = info
     doc["structure"].pop("energy_history", None)
-    (out / "params.json").write_text(json.dumps(doc, indent=2, default=_jsonable))
+    (out / "params.json").write_text(json.dumps(doc, indent=2, default=to_jsonable))
     if not args.no_plots:
         plot_result(res, out, title=f"joint {info['joint']}, model {args.model}")
     print(f"wrote {out / 'params.json'}" + ("" if args.no_plots else " and PNG plots"))
     return 0
 
-
-def _jsonable(x):
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    if isinstance(x, np.bool_):
-        return bool(x)
-    raise TypeError(f"not JSON serializable: {type(x)}")

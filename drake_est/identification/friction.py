@@ -37,6 +37,8 @@ were dropped for each reason.
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import copy
 from dataclasses import dataclass, field
 
@@ -74,18 +76,20 @@ def motor_position(q, gear_ratio: float) -> np.ndarray:
 
 # --------------------------------------------------------------------------- terms
 
-class Term:
-    """A group of regressor columns. Subclasses implement :meth:`columns`."""
+class Term(ABC):
+    """A group of regressor columns. Subclasses implement :meth:`columns` and :meth:`names`."""
 
     kind = "term"
     penalized = False  # ridge penalty applies to these columns
     needs_energy = False
 
-    def columns(self, Q, DQ, j: int, E=None, sign_eps: float = 0.0):  # pragma: no cover - interface
-        raise NotImplementedError
+    @abstractmethod
+    def columns(self, Q, DQ, j: int, E=None, sign_eps: float = 0.0):
+        """Regressor columns (N, k) of joint index ``j``."""
 
-    def names(self) -> list:  # pragma: no cover - interface
-        raise NotImplementedError
+    @abstractmethod
+    def names(self) -> list:
+        """Names of the columns."""
 
     def to_dict(self) -> dict:
         return {"kind": self.kind}
