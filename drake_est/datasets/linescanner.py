@@ -92,9 +92,9 @@ class LineScannerData:
         return pts, idx
 
 
-def load_board(path=None) -> LineScannerData:
-    """The flat-board profiles and robot poses (``linescanner/board``)."""
-    pose_file = data_file("linescanner/board/rob2board.txt", path)
+def _load_scans(pose_file) -> LineScannerData:
+    """Poses (x y z mm, 3 angles deg per row) and the ``N_3C_line.yml`` profiles beside them, in SI units;
+    invalid (NaN) profile points are dropped and counted per profile."""
     raw = np.loadtxt(pose_file, ndmin=2)
     if raw.shape[1] != 6:
         raise DataError(f"{pose_file}: expected 6 columns (x y z mm, 3 angles deg), got {raw.shape[1]}")
@@ -112,22 +112,14 @@ def load_board(path=None) -> LineScannerData:
     return LineScannerData(profiles, raw_si, [f.name for f in files], n_bad)
 
 
+def load_board(path=None) -> LineScannerData:
+    """The flat-board profiles and robot poses (``linescanner/board``)."""
+    return _load_scans(data_file("linescanner/board/rob2board.txt", path))
+
+
 def load_ball(path=None) -> LineScannerData:
     """The sphere profiles and poses (``linescanner/ball``), same layout."""
-    pose_file = data_file("linescanner/ball/robpose.txt", path)
-    raw = np.loadtxt(pose_file, ndmin=2)
-    folder = pose_file.parent
-    files = sorted(folder.glob("*_3C_line.yml"), key=lambda f: int(f.name.split("_")[0]))
-    if len(files) != len(raw):
-        raise DataError(f"{folder}: {len(files)} profiles but {len(raw)} poses")
-    profiles, n_bad = [], []
-    for f in files:
-        p = parse_scan_yaml(f)
-        ok = np.all(np.isfinite(p), axis=1)
-        n_bad.append(int((~ok).sum()))
-        profiles.append(p[ok] * 1e-3)
-    raw_si = np.column_stack([raw[:, :3] * 1e-3, np.radians(raw[:, 3:])])
-    return LineScannerData(profiles, raw_si, [f.name for f in files], n_bad)
+    return _load_scans(data_file("linescanner/ball/robpose.txt", path))
 
 
 def surface_points(profile, threshold: float = 0.4e-3, n_trials: int = 300, seed: int = 0):

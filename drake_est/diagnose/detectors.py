@@ -121,50 +121,40 @@ def asymmetric(jd, r):
                      {"negative_velocity_samples": n_neg})
 
 
-def position_bfe(jd, r, block_of_rows, fit_inner):
-    """Gaussian kernels in arm position times sign(qd) (9.16); number of kernels chosen on the
-    training part by an inner split (train blocks 0, 4, 8, ... vs 2, 6, 10, ...)."""
+def _position_kernels(jd, fit_inner, effect, prefix, signed):
+    """Gaussian kernels in position over the training range, optionally times sign(qd); the number of
+    kernels (BFE_SIZES) chosen by ``fit_inner``. None when the joint spans less than 0.02."""
     q = jd.q[jd.rows]
-    v = jd.v[jd.rows]
     lo, hi = np.quantile(q[jd.train], [0.002, 0.998])
     span = hi - lo
     if span < 0.02:
         return None
+    s = _sgn(jd.v[jd.rows])[:, None] if signed else 1.0
     best = None
     for K in BFE_SIZES:
         centers = np.linspace(lo, hi, K)
         width = span / (K - 1)
-        C = _sgn(v)[:, None] * gaussian_features(q, centers, width)
+        C = s * gaussian_features(q, centers, width)
         err = fit_inner(C)
         if best is None or err < best[0]:
             best = (err, K, centers, width, C)
     _, K, centers, width, C = best
-    spec = {"effect": "position_dependent_friction", "centers": centers.tolist(), "width": float(width)}
-    return Extension("position_dependent_friction", jd.joint, {jd.joint: C}, [f"w{k}" for k in range(K)], spec,
+    spec = {"effect": effect, "centers": centers.tolist(), "width": float(width)}
+    return Extension(effect, jd.joint, {jd.joint: C}, [f"{prefix}{k}" for k in range(K)], spec,
                      {"n_kernels": int(K), "kernel_width_rad": float(width), "range_rad": [float(lo), float(hi)]})
+
+
+def position_bfe(jd, r, block_of_rows, fit_inner):
+    """Gaussian kernels in arm position times sign(qd) (9.16); number of kernels chosen on the
+    training part by an inner split (train blocks 0, 4, 8, ... vs 2, 6, 10, ...)."""
+    return _position_kernels(jd, fit_inner, "position_dependent_friction", "w", signed=True)
 
 
 def position_load(jd, r, fit_inner):
     """A direction-independent torque that depends on position (gravity, springs, cables): Gaussian
     kernels in position, not multiplied by sign(qd).  Used for generic axes, whose nominal model has no
     gravity; an added effect name (the vocabulary may grow)."""
-    q = jd.q[jd.rows]
-    lo, hi = np.quantile(q[jd.train], [0.002, 0.998])
-    span = hi - lo
-    if span < 0.02:
-        return None
-    best = None
-    for K in BFE_SIZES:
-        centers = np.linspace(lo, hi, K)
-        width = span / (K - 1)
-        C = gaussian_features(q, centers, width)
-        err = fit_inner(C)
-        if best is None or err < best[0]:
-            best = (err, K, centers, width, C)
-    _, K, centers, width, C = best
-    spec = {"effect": "position_dependent_load", "centers": centers.tolist(), "width": float(width)}
-    return Extension("position_dependent_load", jd.joint, {jd.joint: C}, [f"g{k}" for k in range(K)], spec,
-                     {"n_kernels": int(K), "kernel_width_rad": float(width), "range_rad": [float(lo), float(hi)]})
+    return _position_kernels(jd, fit_inner, "position_dependent_load", "g", signed=False)
 
 
 def ripple(jd, r, n_components=2, n_basis=None):

@@ -5,6 +5,18 @@ from __future__ import annotations
 import numpy as np
 
 
+
+def _residual_panel(ax, x, r0, r1, extended: bool, j, xlabel, what):
+    """Held-out residual of joint ``j`` vs ``x``: nominal model (grey) and, if any, the extended model."""
+    k = _thin(x.size)
+    ax.plot(x[k], r0[k], ".", ms=2, color="0.6", alpha=0.5, label="nominal model")
+    if extended:
+        ax.plot(x[k], r1[k], ".", ms=2, color="C0", alpha=0.5, label="extended model")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(f"joint {j} residual [N m]")
+    ax.legend(loc="upper right", markerscale=5)
+    ax.set_title(f"Held-out torque residual of joint {j} vs {what}")
+
 def _plt():
     import matplotlib
     matplotlib.use("Agg")
@@ -50,15 +62,7 @@ def write_plots(rep, out) -> list:
         fig, axes = plt.subplots(nj, 1, figsize=(10, 3.2 * nj), squeeze=False)
         for ax, j in zip(axes[:, 0], joints):
             jd, rows, r0, r1 = data[j]
-            x = xf(jd, rows)
-            k = _thin(x.size)
-            ax.plot(x[k], r0[k], ".", ms=2, color="0.6", alpha=0.5, label="nominal model")
-            if res.steps:
-                ax.plot(x[k], r1[k], ".", ms=2, color="C0", alpha=0.5, label="extended model")
-            ax.set_xlabel(xlabel)
-            ax.set_ylabel(f"joint {j} residual [N m]")
-            ax.legend(loc="upper right", markerscale=5)
-            ax.set_title(f"Held-out torque residual of joint {j} vs {xlabel.split(' [')[0]}")
+            _residual_panel(ax, xf(jd, rows), r0, r1, bool(res.steps), j, xlabel, xlabel.split(" [")[0])
         fig.tight_layout()
         fig.savefig(out / name, dpi=100)
         plt.close(fig)
@@ -74,15 +78,7 @@ def write_plots(rep, out) -> list:
             ax.set_axis_off()
             continue
         any_motor = True
-        x = ang[rows]
-        k = _thin(x.size)
-        ax.plot(x[k], r0[k], ".", ms=2, color="0.6", alpha=0.5, label="nominal model")
-        if res.steps:
-            ax.plot(x[k], r1[k], ".", ms=2, color="C0", alpha=0.5, label="extended model")
-        ax.set_xlabel(label)
-        ax.set_ylabel(f"joint {j} residual [N m]")
-        ax.legend(loc="upper right", markerscale=5)
-        ax.set_title(f"Held-out torque residual of joint {j} vs motor angle")
+        _residual_panel(ax, ang[rows], r0, r1, bool(res.steps), j, label, "motor angle")
     fig.tight_layout()
     if any_motor:
         fig.savefig(out / "residual_motor_position.png", dpi=100)
