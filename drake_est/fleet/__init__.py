@@ -1,0 +1,1 @@
+"""Fleet-scale diagnosis on Dask."""
