@@ -189,6 +189,9 @@ def synth_fleet(out, robots: int = 50, days: int = 30, seed: int = 0, duration: 
     corrupt = {(c["robot"], c["day"]): c["kind"] for c in truth["corrupt"]}
     rows = []
     irb_cache = {}
+    for rid, info in truth["robots"].items():
+        (out / rid).mkdir(parents=True, exist_ok=True)
+        (out / rid / "robot.json").write_text(json.dumps({"model": info["model"], "joints": info["joints"]}))
     items = [(rid, d) for rid in truth["robots"] for d in range(days)]
     bar = progress(items, desc="synth-fleet logs", total=len(items)) if show_progress else items
     for rid, d in bar:
