@@ -21,6 +21,8 @@ def register(sub):
     p = sub.add_parser("demo", help="diagnose a bundled IRB140 log with hidden effects and write a report")
     p.add_argument("--out", default=None, help="output folder (default: a new ./drake_est_demo-N folder)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the diagnosis (default 0)")
+    p.add_argument("--fleet", action="store_true",
+                   help="instead: synthesize a small fleet, diagnose it on a local Dask cluster, report trends")
     p.set_defaults(func=run)
 
 
@@ -42,6 +44,10 @@ def run(args) -> int:
     from drake_est.diagnose import diagnose
     from drake_est.robots import irb140_metadata
 
+    if getattr(args, "fleet", False):
+        from drake_est.fleet.demo import run_fleet_demo
+        chk = run_fleet_demo(new_out_dir("drake_est_fleet_demo", args.out), seed=args.seed)
+        return 0 if chk["found"] == chk["planted"] else 1
     out = new_out_dir("drake_est_demo", args.out)
     t0 = time.time()
     log = load_log(DEMO_LOG, limits=irb140_metadata().limits_dict())
