@@ -254,7 +254,7 @@ def local_cluster(workers: int | None = None):
     n = int(workers) if workers else (os.cpu_count() or 1)
     if n < 1:
         raise DataError(f"--workers must be at least 1, got {workers}")
-    return LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+    return LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                         silence_logs=40)
 
 

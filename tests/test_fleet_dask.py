@@ -1,0 +1,161 @@
+"""Fleet runs on real Dask clusters: end to end, resumability, faults, Monte-Carlo determinism."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import sqlite3
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("distributed")
+
+from drake_est.fleet import FleetStore, build_report, check_against_truth, fleet_trends, mc_map, run_fleet, synth_fleet  # noqa: E402
+from drake_est.fleet.run import local_cluster  # noqa: E402
+
+BROWSER = Path(__file__).resolve().parents[2] / "shared" / "browser" / "shot"
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client
+    cluster = local_cluster(2)
+    cl = Client(cluster)
+    try:
+        yield cl
+    finally:
+        cl.close()
+        cluster.close()
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dfleet") / "fleet"
+    s = synth_fleet(out, robots=4, days=9, seed=11, n_irb140=1, duration=12.0, show_progress=False)
+    return out, s
+
+
+@pytest.fixture(scope="module")
+def generic_fleet(tmp_path_factory):
+    out = tmp_path_factory.mktemp("gfleet") / "fleet"
+    s = synth_fleet(out, robots=3, days=8, seed=12, n_irb140=0, duration=10.0, show_progress=False)
+    return out, s
+
+
+def _rows(db):
+    con = sqlite3.connect(db)
+    try:
+        return con.execute("SELECT robot_id, log_time, file_sha256, log_id FROM logs ORDER BY log_id").fetchall()
+    finally:
+        con.close()
+
+
+def test_end_to_end_warnings_match_truth_and_rerun_skips(fleet, client, tmp_path):
+    out, s = fleet
+    db = tmp_path / "f.db"
+    c = run_fleet(out / "manifest.csv", db, client=client, show_progress=False)
+    truth = json.loads(Path(s["truth"]).read_text())
+    assert c["ok"] + c["failed"] == s["logs"] and c["failed"] == len(truth["corrupt"]) and c["unfinished"] == 0
+    with FleetStore(db, write=False) as st:
+        chk = check_against_truth(fleet_trends(st), truth)
+        rep = build_report(st, tmp_path / "rep")
+    assert chk["found"] == chk["planted"] == 3, chk["details"]
+    assert chk["healthy_robot_warnings"] == 0 and chk["extra_warnings_on_planted_robots"] == 0
+    assert len(rep["failed_logs"]) == len(truth["corrupt"]) and all(f["error"] for f in rep["failed_logs"])
+    html = (tmp_path / "rep" / "index.html").read_text()
+    assert "data:image/png;base64," in html and "payload" in html
+    before = _rows(db)
+    c2 = run_fleet(out, db, client=client, show_progress=False)       # folder tree, same logs: all skipped
+    assert c2["skipped"] == s["logs"] and c2["submitted"] == 0 and _rows(db) == before
+    if BROWSER.exists() and shutil.which("node"):
+        p = subprocess.run([str(BROWSER), str(tmp_path / "rep" / "index.html"), str(tmp_path / "shot.png"),
+                            "--wait-ms", "500"], capture_output=True, text=True, timeout=300)
+        info = json.loads(p.stdout.strip().splitlines()[-1])
+        assert p.returncode == 0 and info["page_errors"] == [] and info["nonblank"], p.stdout + p.stderr
+    elif os.environ.get("CI") == "true":
+        pytest.fail("headless browser ../shared/browser/shot not available under CI")
+
+
+def test_killed_worker_loses_and_duplicates_nothing(generic_fleet, tmp_path):
+    """A worker process is killed while the run is going; every log ends in the store exactly once."""
+    from distributed import Client
+    out, s = generic_fleet
+    db = tmp_path / "k.db"
+    cluster = local_cluster(2)
+    cl = Client(cluster)
+    killed = []
+
+    def killer():
+        deadline = time.time() + 60
+        while time.time() < deadline:
+            if db.exists() and len(_rows(db)) >= 5:
+                pids = cl.run(os.getpid)
+                addr, pid = sorted(pids.items())[0]
+                os.kill(pid, signal.SIGKILL)
+                killed.append(addr)
+                return
+            time.sleep(0.05)
+
+    th = threading.Thread(target=killer)
+    try:
+        th.start()
+        c = run_fleet(out, db, client=cl, show_progress=False)
+        th.join()
+    finally:
+        cl.close()
+        cluster.close()
+    assert killed, "the run ended before a worker could be killed"
+    rows = _rows(db)
+    keys = [r[:3] for r in rows]
+    assert len(keys) == len(set(keys)) == s["logs"] and c["unfinished"] == 0
+
+
+def test_interrupted_run_restarts_without_duplicates(generic_fleet, tmp_path):
+    """Ctrl-C on `drake-est fleet diagnose` after some logs; the rerun does only the rest."""
+    import psutil
+    out, s = generic_fleet
+    db = tmp_path / "i.db"
+    env = dict(os.environ, DRAKE_EST_NO_PROGRESS="1")
+    p = subprocess.Popen([sys.executable, "-m", "drake_est", "fleet", "diagnose", str(out), "--store", str(db),
+                          "--workers", "2"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    children = []
+    try:
+        deadline = time.time() + 120
+        while time.time() < deadline and p.poll() is None:
+            if db.exists() and len(_rows(db)) >= 6:
+                break
+            time.sleep(0.05)
+        children = psutil.Process(p.pid).children(recursive=True)
+        p.send_signal(signal.SIGINT)
+        p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    first = _rows(db)
+    assert 6 <= len(first) < s["logs"], "the run was not interrupted mid-way"
+    gone, alive = psutil.wait_procs(children, timeout=20)
+    assert not alive, f"processes left behind: {[a.pid for a in alive]}"
+    c = run_fleet(out, db, workers=2, show_progress=False)
+    rows = _rows(db)
+    assert c["skipped"] == len(first) and rows[:len(first)] == first
+    keys = [r[:3] for r in rows]
+    assert len(keys) == len(set(keys)) == s["logs"]
+
+
+def _trial(params, seed):
+    rng = np.random.default_rng(seed)
+    return float(params["mu"] + rng.standard_normal(params["n"]).mean())
+
+
+def test_mc_map_same_results_for_any_worker_count(client):
+    ps = [{"mu": float(k), "n": 50} for k in range(12)]
+    inline = mc_map(_trial, ps, seed=7, workers=0)
+    assert mc_map(_trial, ps, seed=7, client=client) == inline
+    assert mc_map(_trial, ps, seed=7, workers=1) == inline
