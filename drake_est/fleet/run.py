@@ -223,9 +223,13 @@ def _diagnose(entry, settings) -> dict:
     from drake_est.diagnose import diagnose
     parse_time(entry["time"])
     path = Path(entry["path"])
-    log = load_log(path, derivatives=True)
+    limits = None
+    if entry.get("robot_model") == "irb140":
+        from drake_est.robots import irb140_metadata
+        limits = irb140_metadata().limits_dict()
+    log = load_log(path, limits=limits)
     model = _resolve_model(entry, log.meta)
-    if model == "irb140":
+    if model == "irb140" and limits is None:     # model read from the log itself: check against the limits
         from drake_est.robots import irb140_metadata
         log = load_log(path, limits=irb140_metadata().limits_dict())
     kw = {k: settings[k] for k in ("alpha", "min_gain") if settings.get(k) is not None}

@@ -38,18 +38,21 @@ def _day(start: str, d: int) -> str:
     return (_dt.date.fromisoformat(start) + _dt.timedelta(days=int(d))).isoformat()
 
 
-def axis_trajectory(rng, duration, sample_rate=SAMPLE_RATE, lo=-2.0, hi=2.0, vmax=1.2, acc=4.0):
-    """Piecewise-constant-velocity sweeps between ``lo`` and ``hi`` (Sec. 9.6): each pass at a
-    random speed in [0.15, 1] vmax, with acceleration-limited ramps.  Returns t, q, v, a."""
+def axis_trajectory(rng, duration, sample_rate=SAMPLE_RATE, lo=-1.2, hi=1.2, vmax=1.5, acc=6.0):
+    """Piecewise-constant-velocity sweeps between ``lo`` and ``hi`` (Sec. 9.6), with acceleration-
+    limited ramps.  The passes cycle through the speeds [0.2, 1] vmax in a random order, so every
+    log holds several distinct speeds (with one speed only, v and sign(v) would be collinear and
+    the Coulomb and viscous levels not separable).  Returns t, q, v, a."""
     dt = 1.0 / sample_rate
     t = np.arange(0.0, duration, dt)
     q = np.empty_like(t)
     v = np.empty_like(t)
-    levels = vmax * np.linspace(0.15, 1.0, 8)
+    levels = vmax * rng.permutation(np.linspace(0.2, 1.0, 6))
     qk = rng.uniform(lo + 0.2 * (hi - lo), hi - 0.2 * (hi - lo))
     vk = 0.0
     direction = 1.0 if rng.random() < 0.5 else -1.0
-    cmd = rng.choice(levels)
+    n_pass = 0
+    cmd = levels[0]
     for k in range(len(t)):
         target = direction * cmd
         v_new = vk + np.clip(target - vk, -acc * dt, acc * dt)
@@ -57,7 +60,8 @@ def axis_trajectory(rng, duration, sample_rate=SAMPLE_RATE, lo=-2.0, hi=2.0, vma
         vk = v_new
         if (direction > 0 and qk >= hi) or (direction < 0 and qk <= lo):
             direction = -direction
-            cmd = rng.choice(levels)
+            n_pass += 1
+            cmd = levels[n_pass % len(levels)]
         q[k], v[k] = qk, vk
     a = np.gradient(v, dt)
     return t, q, v, a

@@ -15,7 +15,7 @@ the methods of thesis Ch. 7:
 
 A change is reported when (i) the one-switch fit lowers the residual sum of squares by at least
 ``MIN_SNR`` noise variances (noise from the median absolute first difference, robust to the change
-itself), (ii) the change is physically relevant (``PARAMETERS``: relative or absolute size) and (iii) it
+itself; isolated outlying logs are left out first by a Hampel filter and counted), (ii) the change is physically relevant (``PARAMETERS``: relative or absolute size) and (iii) it
 persists: at least 80 % of the logs after the change lie on the new side of the midpoint between the
 levels (one odd log does not make a warning).  Warnings are ranked by the signal-to-noise ratio
 sqrt(delta RSS) / sigma.  A payload change on a robot explains simultaneous (+-3 days) changes of its
@@ -58,6 +58,25 @@ def robust_sigma(y) -> float:
     return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))
 
 
+def outlier_mask(y, half: int = 3, k: float = 6.0) -> np.ndarray:
+    """True for isolated outlying logs (Hampel filter): more than ``k`` noise standard deviations
+    (robust, from second differences) from the running median of 2 ``half`` + 1 logs.  A step lasting more than ``half`` logs and a
+    trend are followed by the running median and are not outliers."""
+    y = np.asarray(y, float)
+    T = y.size
+    if T < 2 * half + 1:
+        return np.zeros(T, bool)
+    # point reflection at the ends keeps a linear trend linear (edge padding would flag its last logs)
+    pad = np.concatenate([2 * y[0] - y[half:0:-1], y, 2 * y[-1] - y[-2:-half - 2:-1]])
+    med = np.median(np.lib.stride_tricks.sliding_window_view(pad, 2 * half + 1), axis=1)
+    r = y - med
+    # noise level from second differences: zero for a step (but at 2 points) and for a trend
+    d2 = np.diff(y, 2)
+    s = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / np.sqrt(6.0)
+    s = max(s, 1e-6 * max(float(np.median(np.abs(y))), 1e-12))
+    return np.abs(r) > k * s
+
+
 def trend_filter(t, y, lam: float = 3.0) -> np.ndarray:
     """Smooth trend of a series by trend filtering (7.5): second-order differences penalized by
     ``lam`` on the series scaled by its robust noise level."""
@@ -82,6 +101,7 @@ class Change:
     after_end: float      # fitted level at the last log
     fit: np.ndarray       # the piecewise fit (T,)
     sigma: float
+    n_outliers: int = 0   # isolated odd logs left out (:func:`outlier_mask`)
 
 
 def _segments(Phi, y):
@@ -132,6 +152,16 @@ def detect_change(t, y, min_rel: float = 0.0, min_abs: float = 0.0, presence: bo
         return None
     if presence and np.any(y == 0):
         return detect_appearance(t, y, min_abs=min_abs)
+    out = outlier_mask(y)
+    if out.any():        # isolated odd logs (e.g. a poorly excited log) are left out, and counted
+        keep = np.flatnonzero(~out)
+        ch = detect_change(t[keep], y[keep], min_rel=min_rel, min_abs=min_abs)
+        if ch is None:
+            return None
+        fit = np.interp(np.arange(T), keep, ch.fit)
+        ch = Change(int(keep[ch.index]), ch.kind, ch.snr, ch.before, ch.after_start, ch.after_end, fit, ch.sigma,
+                    int(out.sum()))
+        return ch
     scale = max(float(np.max(np.abs(y))), 1e-12)
     sigma = max(robust_sigma(y), 1e-3 * float(np.median(np.abs(y))), 1e-9 * scale)
     rss0 = float(np.sum((y - y.mean()) ** 2))
@@ -255,7 +285,7 @@ def fleet_trends(store, settings_hash: str | None = None) -> dict:
             w = {"robot_id": rid, "joint": j, "parameter": name, "cause": grow if after > ch.before else fall,
                  "kind": ch.kind, "date": times[ch.index][:10], "time": times[ch.index], "before": ch.before,
                  "after": after, "after_start": ch.after_start, "after_end": ch.after_end, "snr": ch.snr,
-                 "noise_sigma": ch.sigma, "unit": unit, "n_logs": int(len(y))}
+                 "noise_sigma": ch.sigma, "unit": unit, "n_logs": int(len(y)), "outlier_logs": ch.n_outliers}
             w["text"] = _text(w, freqs.get((rid, j)))
             entry["change"] = {k: w[k] for k in ("date", "time", "kind", "before", "after", "snr")}
             entry["fit"] = ch.fit.tolist()
