@@ -5,3 +5,4 @@
 
 # particle filters (Sec. 4.2), FFBSi smoothing and parameter estimation
 from drake_est.estimation.pf import GaussianParticleFilter, ParticleFilter, ParticleSmoothResult  # noqa: E402,F401
+from drake_est.estimation.params import MLResult, PMMHResult, loglik_function, maximize_loglik, pmmh  # noqa: E402,F401
