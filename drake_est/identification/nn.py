@@ -102,22 +102,26 @@ def loss_and_grad(params, Z, Y, pred_w, pairs, jacprop=0.0, weight_decay=0.0, N=
 
     Returns (cost, pred_cost, jac_cost, grads) with grads a list [(dW, db)] shaped like ``params``."""
     L = len(params)
-    B = Z.shape[0]
+    B, d = Z.shape
     use_jac = jacprop > 0 and len(pairs) > 0
     # ---- forward (with the Jacobian recursion when needed) ----
-    ls, ss, Ms, Js = [Z], [], [], []
-    l, J = Z, None
+    # Jacobians are kept transposed, Jt_i (B, d, h_i) = J_i^T, so that every product is one 2-D matmul:
+    # M_i^T = Jt_{i-1} W_i^T, Jt_i = M_i^T * s_i.
+    ls, ss, Mts, Jts = [Z], [], [], []
+    l, Jt = Z, None
     for W, b in params[:-1]:
         l = np.tanh(l @ W.T + b)
         s = 1.0 - l * l
         ls.append(l)
         ss.append(s)
         if use_jac:
-            M = np.broadcast_to(W, (B,) + W.shape) if J is None else np.matmul(W, J)
-            J = s[:, :, None] * M
-            Ms.append(M)
-            Js.append(J)
+            h = W.shape[0]
+            Mt = np.broadcast_to(W.T, (B, d, h)) if Jt is None else (Jt.reshape(B * d, -1) @ W.T).reshape(B, d, h)
+            Jt = Mt * s[:, None, :]
+            Mts.append(Mt)
+            Jts.append(Jt)
     WL, bL = params[-1]
+    n_out = WL.shape[0]
     out = l @ WL.T + bL
     if N is not None:
         out = out + Z @ N.T
@@ -126,9 +130,9 @@ def loss_and_grad(params, Z, Y, pred_w, pairs, jacprop=0.0, weight_decay=0.0, N=
     wd_cost = 0.5 * weight_decay * sum(float(np.sum(W * W)) for W, _ in params) if weight_decay > 0 else 0.0
     jac_cost = 0.0
     if use_jac:
-        Jout = np.matmul(WL, J) if J is not None else np.broadcast_to(WL, (B,) + WL.shape)
+        Jout_t = np.broadcast_to(WL.T, (B, d, n_out)) if Jt is None else (Jt.reshape(B * d, -1) @ WL.T).reshape(B, d, n_out)
         p0, p1 = pairs[:, 0], pairs[:, 1]
-        D = Jout[p1] - Jout[p0]
+        D = Jout_t[p1] - Jout_t[p0]
         c = jacprop / len(pairs)
         jac_cost = c * float(np.sum(D * D))
     cost = pred_cost + wd_cost + jac_cost
@@ -140,32 +144,34 @@ def loss_and_grad(params, Z, Y, pred_w, pairs, jacprop=0.0, weight_decay=0.0, N=
     dWL = Ebar.T @ ls[-1]
     dbL = Ebar.sum(0)
     lbar = Ebar @ WL                                  # d cost / d l_{L-1}
-    Jbar = None
+    Jbar = None                                       # d cost / d Jt_i  (B, d, h_i)
     if use_jac:
-        G = np.zeros_like(Jout)                       # d cost / d Jout per row
+        G = np.zeros((B, d, n_out))                   # d cost / d Jout_t per row
         np.add.at(G, p1, 2 * c * D)
         np.add.at(G, p0, -2 * c * D)
-        if J is None:                                 # linear network: Jout = W_L
-            dWL = dWL + G.sum(0)
+        if Jt is None:                                # linear network: Jout = W_L
+            dWL = dWL + G.sum(0).T
         else:
-            dWL = dWL + np.einsum("bnd,bhd->nh", G, Js[-1])
-            Jbar = np.matmul(WL.T, G)                 # d cost / d J_{L-1}
+            G2 = G.reshape(B * d, n_out)
+            dWL = dWL + G2.T @ Jts[-1].reshape(B * d, -1)
+            Jbar = (G2 @ WL).reshape(B, d, -1)
     grads[-1] = (dWL, dbL)
     for i in range(L - 2, -1, -1):                    # hidden layer i (params[i]), output ls[i+1]
         W, _ = params[i]
+        h = W.shape[0]
         s, li = ss[i], ls[i + 1]
         dW = np.zeros_like(W)
         if Jbar is not None:
-            M = Ms[i]
-            Mbar = s[:, :, None] * Jbar               # J_i = s_i * M_i
-            sbar = np.einsum("bhd,bhd->bh", Jbar, M)
+            Mbar = Jbar * s[:, None, :]               # Jt_i = Mt_i * s_i
+            sbar = np.sum(Jbar * Mts[i], axis=1)
             lbar = lbar - 2.0 * li * sbar             # s_i = 1 - l_i^2
-            if i == 0:                                # M_1 = W_1
-                dW += Mbar.sum(0)
+            if i == 0:                                # Mt_1 = W_1^T
+                dW += Mbar.sum(0).T
                 Jbar = None
-            else:                                     # M_i = W_i J_{i-1}
-                dW += np.einsum("bhd,bkd->hk", Mbar, Js[i - 1])
-                Jbar = np.matmul(W.T, Mbar)
+            else:                                     # Mt_i = Jt_{i-1} W_i^T
+                Mb2 = Mbar.reshape(B * d, h)
+                dW += Mb2.T @ Jts[i - 1].reshape(B * d, -1)
+                Jbar = (Mb2 @ W).reshape(B, d, -1)
         abar = lbar * s                               # l_i = tanh(a_i)
         dW += abar.T @ ls[i]
         db = abar.sum(0)
@@ -254,6 +260,53 @@ def _batch(data, idx):
     pred_w[pos[idx]] = 1.0 / idx.size
     pairs = np.stack([pos[idx[has]], pos[nx[has]]], axis=1) if has.any() else np.zeros((0, 2), int)
     return data.Z[rows], data.Y[rows], pred_w, pairs
+
+
+class Adam:
+    """Adam optimizer state [Kingma and Ba, 2014] for a parameter list [(W, b), ...]."""
+
+    def __init__(self, params, lr=1e-3, b1=0.9, b2=0.999, eps=1e-8):
+        self.lr, self.b1, self.b2, self.eps = lr, b1, b2, eps
+        self.m = [(np.zeros_like(W), np.zeros_like(b)) for W, b in params]
+        self.v = [(np.zeros_like(W), np.zeros_like(b)) for W, b in params]
+        self.step = 0
+
+    def update(self, params, grads):
+        self.step += 1
+        b1, b2, lr, eps = self.b1, self.b2, self.lr, self.eps
+        c1, c2 = 1 - b1 ** self.step, 1 - b2 ** self.step
+        new = []
+        for k, ((W, b), (gW, gb)) in enumerate(zip(params, grads)):
+            mW, mb = self.m[k]
+            vW, vb = self.v[k]
+            mW = b1 * mW + (1 - b1) * gW
+            mb = b1 * mb + (1 - b1) * gb
+            vW = b2 * vW + (1 - b2) * gW * gW
+            vb = b2 * vb + (1 - b2) * gb * gb
+            self.m[k], self.v[k] = (mW, mb), (vW, vb)
+            new.append((W - lr * (mW / c1) / (np.sqrt(vW / c2) + eps),
+                        b - lr * (mb / c1) / (np.sqrt(vb / c2) + eps)))
+        return new
+
+
+def train_epoch(params, data, order, batch_size, adam, jacprop=0.0, weight_decay=0.0):
+    """One pass over the training samples in ``order``: a mini-batch gradient step (exact gradient of the
+    cost of :func:`loss_and_grad`) and Adam update per batch of ``batch_size`` samples.
+
+    Returns (params, (cost, prediction cost, Jacprop cost) averaged over the epoch, bad) where ``bad`` is
+    True when a non-finite cost or gradient stopped the epoch (``params`` are then those before that step)."""
+    Ns = order.size
+    tot = totp = totj = 0.0
+    for s0 in range(0, Ns, batch_size):
+        idx = np.sort(order[s0:s0 + batch_size])
+        Zb, Yb, pw, pairs = _batch(data, idx)
+        cost, pc, jc, grads = loss_and_grad(params, Zb, Yb, pw, pairs, jacprop, weight_decay)
+        if not np.isfinite(cost) or not all(np.all(np.isfinite(g)) for gw in grads for g in gw):
+            return params, (tot, totp, totj), True
+        frac = idx.size / Ns
+        tot, totp, totj = tot + cost * frac, totp + pc * frac, totj + jc * frac
+        params = adam.update(params, grads)
+    return params, (tot, totp, totj), False
 
 
 # =============================================================================================
@@ -387,10 +440,7 @@ class NeuralDynamicsModel:
         params = init_params(sizes, rng, self.init_scale)
         Ns = data.Z.shape[0]
         bs = Ns if self.batch_size is None else max(1, min(int(self.batch_size), Ns))
-        lr, b1, b2, eps = self.learning_rate, 0.9, 0.999, 1e-8
-        mom = [(np.zeros_like(W), np.zeros_like(b)) for W, b in params]
-        vel = [(np.zeros_like(W), np.zeros_like(b)) for W, b in params]
-        step = 0
+        adam = Adam(params, self.learning_rate)
         hist = {"epoch": [], "train_cost": [], "train_pred": [], "train_jac": [], "val_epoch": [], "val_mse": []}
         best = (np.inf, copy.deepcopy(params), 0)
         last_good = copy.deepcopy(params)
@@ -399,33 +449,8 @@ class NeuralDynamicsModel:
         epochs = progress(range(self.epochs), desc=f"train {self.form}", total=self.epochs) \
             if self.progress_bar else range(self.epochs)
         for ep in epochs:
-            order = rng.permutation(Ns)
-            tot = totp = totj = 0.0
-            bad = False
-            for s0 in range(0, Ns, bs):
-                idx = np.sort(order[s0:s0 + bs])
-                Zb, Yb, pw, pairs = _batch(data, idx)
-                cost, pc, jc, grads = loss_and_grad(params, Zb, Yb, pw, pairs, self.jacprop,
-                                                    self.weight_decay)
-                if not np.isfinite(cost) or not all(np.all(np.isfinite(g)) for gw in grads for g in gw):
-                    bad = True
-                    break
-                frac = idx.size / Ns
-                tot, totp, totj = tot + cost * frac, totp + pc * frac, totj + jc * frac
-                step += 1
-                c1, c2 = 1 - b1 ** step, 1 - b2 ** step
-                new = []
-                for k, ((W, b), (gW, gb)) in enumerate(zip(params, grads)):
-                    mW, mb = mom[k]
-                    vW, vb = vel[k]
-                    mW = b1 * mW + (1 - b1) * gW
-                    mb = b1 * mb + (1 - b1) * gb
-                    vW = b2 * vW + (1 - b2) * gW * gW
-                    vb = b2 * vb + (1 - b2) * gb * gb
-                    mom[k], vel[k] = (mW, mb), (vW, vb)
-                    new.append((W - lr * (mW / c1) / (np.sqrt(vW / c2) + eps),
-                                b - lr * (mb / c1) / (np.sqrt(vb / c2) + eps)))
-                params = new
+            params, (tot, totp, totj), bad = train_epoch(params, data, rng.permutation(Ns), bs, adam,
+                                                         self.jacprop, self.weight_decay)
             if bad or not all(np.all(np.isfinite(a)) for W, b in params for a in (W, b)):
                 self.diverged_ = (f"training diverged (non-finite loss) in epoch {ep + 1}; "
                                   f"returning the last good parameters (epoch {ep})")
