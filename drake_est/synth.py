@@ -34,14 +34,14 @@ import numpy as np
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.controllers import InverseDynamicsController
-from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import Adder, Gain, TrajectorySource, VectorLogSink
+from pydrake.systems.framework import BasicVector, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_est.data import Log
 from drake_est.errors import DrakeEstError
-from drake_est.robots import add_irb140, irb140_metadata, models_dir
+from drake_est.robots import irb140_metadata, models_dir
+from drake_est.systems.builders import (Irb140SimulationConfig, MakeIrb140Simulation, PlantConfig,
+                                       TrackingControllerConfig)
 
 EFFECTS = ("position_dependent_friction", "motor_position_ripple", "energy_dependent_friction",
            "asymmetric_coulomb", "gear_coupling", "payload", "abrupt_change")
@@ -351,36 +351,15 @@ def synthesize(effect="none", seed: int = 0, joints=None, duration: float | None
     else:
         raise DrakeEstError(f"unknown experiment '{experiment}' (use 'sweep' or 'excitation')")
     traj = PiecewisePolynomial.CubicHermite(ts, Qr.T, Vr.T)
-    acc = traj.derivative(2)
 
     # ---- diagram: plant (+ payload) <- controller (nominal model) - true friction
     payload = (eff["payload"]["mass"], eff["payload"]["com_in_flange"]) if "payload" in eff else None
-    builder, plant, _, _ = add_irb140(DiagramBuilder(), time_step=0.0, payload=payload)
-    _, ctrl_plant, _, _ = add_irb140(DiagramBuilder(), time_step=0.0)
-    wn = 25.0
-    kp, kd, ki = np.full(n, wn**2), np.full(n, 2 * wn), np.full(n, 0.5 * wn**2)
-    ctrl = builder.AddSystem(InverseDynamicsController(ctrl_plant, kp, ki, kd, True))
-    src = builder.AddSystem(TrajectorySource(traj, output_derivative_order=1))
-    src_acc = builder.AddSystem(TrajectorySource(acc))
-    fric = builder.AddSystem(TrueJointFriction(truth))
-    neg = builder.AddSystem(Gain(-1.0, n))
-    add = builder.AddSystem(Adder(2, n))
-    builder.Connect(src.get_output_port(), ctrl.get_input_port_desired_state())
-    builder.Connect(src_acc.get_output_port(), ctrl.get_input_port_desired_acceleration())
-    builder.Connect(plant.get_state_output_port(), ctrl.get_input_port_estimated_state())
-    builder.Connect(plant.get_state_output_port(), fric.get_input_port(0))
-    builder.Connect(fric.get_output_port(0), neg.get_input_port())
-    builder.Connect(ctrl.get_output_port_control(), add.get_input_port(0))
-    builder.Connect(neg.get_output_port(), add.get_input_port(1))
-    builder.Connect(add.get_output_port(), plant.get_actuation_input_port())
     period = 1.0 / sample_rate
-    log_x = builder.AddSystem(VectorLogSink(2 * n, period))
-    log_u = builder.AddSystem(VectorLogSink(n, period))
-    log_f = builder.AddSystem(VectorLogSink(n, period))
-    builder.Connect(plant.get_state_output_port(), log_x.get_input_port())
-    builder.Connect(ctrl.get_output_port_control(), log_u.get_input_port())
-    builder.Connect(fric.get_output_port(0), log_f.get_input_port())
-    diagram = builder.Build()
+    config = Irb140SimulationConfig(plant=PlantConfig(time_step=0.0, payload=payload),
+                                    controller=TrackingControllerConfig.from_bandwidth(25.0, ki_ratio=0.5),
+                                    log_period=period)
+    diagram, h = MakeIrb140Simulation(config, traj, friction=TrueJointFriction(truth))
+    plant, log_x, log_u, log_f = h.plant, h.state_log, h.torque_log, h.friction_log
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
     plant.SetPositions(plant.GetMyMutableContextFromRoot(ctx), Qr[0])
