@@ -129,19 +129,20 @@ def _windows(result, window_s, n_windows):
 def _simulate_robot(result, law, payload, t0, t1):
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
-    from pydrake.systems.primitives import Adder, Demultiplexer, Gain, TrajectorySource, VectorLogSink
+    from pydrake.systems.primitives import TrajectorySource
     from pydrake.trajectories import PiecewisePolynomial
 
-    from drake_est.robots import add_irb140, add_robot
+    from drake_est.systems.builders import (AddIrb140Plant, AddJointFriction, AddRobotPlant, AddStateLogger,
+                                            PlantConfig)
 
     prep = result.prep
     log = prep.log
     builder = DiagramBuilder()
+    config = PlantConfig(time_step=0.0, payload=payload)   # continuous plant, extended model's payload
     if prep.robot_kind == "irb140":
-        _, plant, _, _ = add_irb140(builder, time_step=0.0, payload=payload)
+        plant = AddIrb140Plant(builder, config)
     else:
-        plant, _, _ = add_robot(builder, prep.robot.urdf, 0.0, payload=payload,
-                                flange_frame=prep.robot.flange.name())
+        plant = AddRobotPlant(builder, prep.robot.urdf, config, flange_frame=prep.robot.flange.name())
     n = plant.num_positions()
     sel = (log.t >= t0 - 0.05) & (log.t <= t1 + 0.05)
     ts = log.t[sel]
@@ -149,20 +150,10 @@ def _simulate_robot(result, law, payload, t0, t1):
     for c, j in enumerate(log.joints):
         U[:, j - 1] = log.tau[sel, c]
     src = builder.AddSystem(TrajectorySource(PiecewisePolynomial.FirstOrderHold(ts, U.T)))
-    fr = builder.AddSystem(DiagnosedFriction(law, n, prep.robot_cols))
-    demux = builder.AddSystem(Demultiplexer([n, n]))
-    neg = builder.AddSystem(Gain(-1.0, n))
-    add = builder.AddSystem(Adder(2, n))
-    builder.Connect(plant.get_state_output_port(), demux.get_input_port(0))
-    builder.Connect(demux.get_output_port(0), fr.get_input_port(0))
-    builder.Connect(demux.get_output_port(1), fr.get_input_port(1))
-    builder.Connect(fr.get_output_port(0), neg.get_input_port())
-    builder.Connect(src.get_output_port(), add.get_input_port(0))
-    builder.Connect(neg.get_output_port(), add.get_input_port(1))
-    builder.Connect(add.get_output_port(), plant.get_actuation_input_port())
+    AddJointFriction(builder, plant, DiagnosedFriction(law, n, prep.robot_cols),
+                     actuation_source=src.get_output_port())
     h = float(np.median(np.diff(log.t)))
-    sink = builder.AddSystem(VectorLogSink(2 * n, h))
-    builder.Connect(plant.get_state_output_port(), sink.get_input_port())
+    sink = AddStateLogger(builder, plant, h)
     diagram = builder.Build()
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
