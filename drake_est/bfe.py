@@ -25,7 +25,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
 
 from drake_est.errors import DrakeEstError, IdentifiabilityError
 
@@ -194,149 +193,10 @@ class BasisFunctionExpansion:
 # --------------------------------------------------------------------------- ridge
 
 
-@dataclass
-class RidgeFit:
-    """Result of :func:`ridge_fit`."""
-
-    coef: np.ndarray
-    lam: float
-    dof: float  # effective number of parameters, trace of the hat matrix
-    rank: int
-    singular_values: np.ndarray
-
-    def predict(self, A) -> np.ndarray:
-        return np.asarray(A) @ self.coef
-
-
-def _penalty_matrix(p: int, penalize) -> np.ndarray:
-    if penalize is None:
-        return np.ones(p)
-    pen = np.asarray(penalize, dtype=float).ravel()
-    if pen.size != p:
-        raise DrakeEstError(f"penalize mask has {pen.size} entries for {p} parameters")
-    return pen
-
-
-def check_excitation(A, names=None, rtol: float = 1e-9) -> None:
-    """Raise :class:`IdentifiabilityError` naming unexcited regressor columns.
-
-    A column that is identically zero, or a set of columns in the null space of
-    A (direction of the right singular vector), cannot be estimated from data."""
-    A = np.asarray(A, dtype=float)
-    names = list(names) if names is not None else [f"column {i}" for i in range(A.shape[1])]
-    norms = np.linalg.norm(A, axis=0)
-    dead = [names[i] for i in np.flatnonzero(norms <= rtol * max(norms.max(initial=0.0), 1e-300))]
-    if dead:
-        raise IdentifiabilityError(f"regressor(s) not excited by the data (all zero): {', '.join(dead)}")
-    if A.shape[0] < A.shape[1]:
-        raise IdentifiabilityError(f"{A.shape[0]} samples are fewer than the {A.shape[1]} parameters")
-    scaled = A / norms
-    _, s, vt = np.linalg.svd(scaled, full_matrices=False)
-    if s[-1] <= rtol * s[0] * max(A.shape):
-        w = vt[-1]
-        top = np.argsort(-np.abs(w))[:3]
-        combo = " + ".join(f"{w[i]:+.2f}*{names[i]}" for i in top)
-        raise IdentifiabilityError(
-            f"regressors are linearly dependent (condition number {s[0] / max(s[-1], 1e-300):.1e}); "
-            f"the data do not separate the direction {combo}")
-
-
-def ridge_fit(A, y, lam: float = 0.0, penalize=None, check: bool = False, names=None) -> RidgeFit:
-    """Minimize ||y - A k||^2 + lam * ||D k||^2 with D = diag(penalize) (Eq. (6.8)).
-
-    Solved as the augmented least-squares problem [A; sqrt(lam) D] k = [y; 0] by
-    SVD (LAPACK gelsd), which is stable also for rank-deficient ``A`` when lam > 0.
-    ``check=True`` first verifies identifiability (only meaningful when lam = 0)."""
-    A = np.asarray(A, dtype=float)
-    y = np.asarray(y, dtype=float)
-    if A.ndim != 2 or y.shape[0] != A.shape[0]:
-        raise DrakeEstError(f"ridge: A has shape {A.shape} but y has {y.shape[0]} rows")
-    if not np.all(np.isfinite(A)) or not np.all(np.isfinite(y)):
-        raise DrakeEstError("ridge: regressors or targets contain NaN/inf")
-    p = A.shape[1]
-    if check and lam == 0:
-        check_excitation(A, names)
-    d = _penalty_matrix(p, penalize)
-    if lam > 0:
-        Aa = np.vstack([A, np.sqrt(lam) * np.diag(d)])
-        ya = np.concatenate([y, np.zeros((p,) + y.shape[1:])])
-    else:
-        Aa, ya = A, y
-    coef, _, rank, sv = scipy.linalg.lstsq(Aa, ya, lapack_driver="gelsd")
-    # effective degrees of freedom: sum s_i^2/(s_i^2+lam) for D = I; general D via the augmented SVD
-    if lam > 0:
-        _, s_aug, vt = np.linalg.svd(Aa, full_matrices=False)
-        # hat-matrix trace = ||A V S^-1||_F^2
-        AV = A @ vt.T
-        dof = float(np.sum((AV / np.where(s_aug > 0, s_aug, np.inf)) ** 2))
-    else:
-        dof = float(rank)
-    return RidgeFit(coef=coef, lam=float(lam), dof=dof, rank=int(rank), singular_values=sv)
-
-
-def _kfold_indices(n: int, k: int, contiguous: bool = True, seed: int = 0):
-    if contiguous:
-        edges = np.linspace(0, n, k + 1).astype(int)
-        return [np.arange(edges[i], edges[i + 1]) for i in range(k)]
-    rng = np.random.default_rng(seed)
-    perm = rng.permutation(n)
-    return np.array_split(perm, k)
-
-
-def cv_error(A, y, lam: float, penalize=None, folds: int = 5, contiguous: bool = True, seed: int = 0) -> float:
-    """Mean squared K-fold cross-validation error of ridge regression at ``lam``.
-
-    ``contiguous`` folds (blocks in time) are the honest choice for time series."""
-    A = np.asarray(A, dtype=float)
-    y = np.asarray(y, dtype=float)
-    n = A.shape[0]
-    sse = 0.0
-    for test in _kfold_indices(n, folds, contiguous, seed):
-        train = np.setdiff1d(np.arange(n), test, assume_unique=True)
-        fit = ridge_fit(A[train], y[train], lam, penalize)
-        sse += float(np.sum((y[test] - A[test] @ fit.coef) ** 2))
-    return sse / n
-
-
-def log_evidence(A, y, lam: float, noise_var: float | None = None) -> float:
-    """Log marginal likelihood of Bayesian linear regression with prior k ~ N(0, s2/lam I)
-    and noise variance s2 (profiled out when None). Used for evidence maximization."""
-    A = np.asarray(A, dtype=float)
-    y = np.asarray(y, dtype=float).ravel()
-    n, p = A.shape
-    u, s, vt = np.linalg.svd(A, full_matrices=False)
-    uty = u.T @ y
-    resid_out = float(y @ y - uty @ uty)
-    shrink = s**2 / (s**2 + lam)
-    # y^T (I + A A^T / lam)^-1 y
-    quad = resid_out + float(np.sum(uty**2 * (1 - shrink)))
-    logdet = float(np.sum(np.log1p(s**2 / lam)))
-    if noise_var is None:
-        s2 = quad / n
-        return -0.5 * (n * np.log(2 * np.pi * s2) + logdet + n)
-    return -0.5 * (n * np.log(2 * np.pi * noise_var) + logdet + quad / noise_var)
-
-
-def select_ridge(A, y, lams=None, penalize=None, method: str = "cv", folds: int = 5, contiguous: bool = True,
-                 seed: int = 0):
-    """Choose the ridge penalty over a log grid by ``"cv"`` or ``"evidence"``.
-
-    Returns ``(best_lam, scores)`` with scores as CV error (lower is better) or
-    log evidence (higher is better)."""
-    if lams is None:
-        lams = np.logspace(-6, 3, 19)
-    lams = np.asarray(lams, dtype=float)
-    if method == "cv":
-        scores = np.array([cv_error(A, y, l, penalize, folds, contiguous, seed) for l in lams])
-        best = lams[int(np.argmin(scores))]
-    elif method == "evidence":
-        if penalize is not None and not np.all(np.asarray(penalize) == 1):
-            raise DrakeEstError("evidence maximization supports a uniform penalty only; use method='cv'")
-        scores = np.array([log_evidence(A, y, l) for l in lams])
-        best = lams[int(np.argmax(scores))]
-    else:
-        raise DrakeEstError(f"unknown selection method '{method}'; use 'cv' or 'evidence'")
-    return float(best), scores
+# The ridge solvers live in the one regression core; re-exported here (public names kept).
+from drake_est.regression import (RidgeFit, check_excitation, cv_error, log_evidence,  # noqa: E402,F401
+                                  penalty_weights as _penalty_matrix, ridge_fit, select_ridge)
+from drake_est.regression import kfold_indices as _kfold_indices  # noqa: E402,F401
 
 
 def select_bfe(X, y, n_grid=(5, 10, 20, 40), width_factors=(0.5, 1.0, 2.0), lams=None, kernel="gaussian",

@@ -22,6 +22,7 @@ import scipy.stats
 from drake_est.diagnose import detectors as det
 from drake_est.diagnose.nominal import OUTLIER_MAD, block_index, nominal_columns, nominal_names, prepare
 from drake_est.metrics import metrics_table
+from drake_est.regression import ridge_solve
 
 ALPHA = 1e-4          # significance level of the held-out F-test
 MIN_GAIN = 0.02       # minimum relative reduction of the held-out RMSE of the affected joint(s)
@@ -45,20 +46,15 @@ def _ridge_lstsq(A, y, penalize):
     """Least squares with a small relative ridge on the extension columns (Eq. (6.8)).
 
     ``penalize``: number of leading unpenalized columns, or a boolean mask of penalized columns.
-    The penalty RIDGE * ||A_k||^2 on column k keeps near-collinear extensions (e.g. periodic
-    columns over few discrete speed levels) from trading huge coefficients against the nominal
-    Coulomb/viscous ones; it is solved as an augmented least-squares problem (no inverse)."""
+    The penalty RIDGE * ||A_k||^2 on column k (:func:`drake_est.regression.ridge_solve` with
+    ``column_scaled=True``) keeps near-collinear extensions (e.g. periodic columns over few
+    discrete speed levels) from trading huge coefficients against the nominal Coulomb/viscous ones."""
     p = A.shape[1]
     if isinstance(penalize, (int, np.integer)):
         mask = np.arange(p) >= penalize
     else:
         mask = np.asarray(penalize, bool)
-    if not mask.any():
-        return np.linalg.lstsq(A, y, rcond=None)[0]
-    w = np.sqrt(RIDGE * np.maximum(np.sum(A[:, mask] ** 2, axis=0), 1e-300))
-    R = np.zeros((int(mask.sum()), p))
-    R[np.arange(int(mask.sum())), np.flatnonzero(mask)] = w
-    return np.linalg.lstsq(np.vstack([A, R]), np.concatenate([y, np.zeros(R.shape[0])]), rcond=None)[0]
+    return ridge_solve(A, y, RIDGE, mask.astype(float), column_scaled=True)
 
 
 class Model:

@@ -44,7 +44,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from drake_est.bfe import BasisFunctionExpansion, check_excitation, ridge_fit
+from drake_est.bfe import BasisFunctionExpansion
+from drake_est.regression import check_excitation, ridge_cv, ridge_fit, ridge_gram_dof, ridge_gram_solve
 from drake_est.errors import DataError, DrakeEstError, IdentifiabilityError
 from drake_est.metrics import fpe, fit_percent, mae, npe, rmse
 
@@ -343,41 +344,8 @@ class EnergyDynamics:
 # --------------------------------------------------------------------------- fast ridge for CV
 
 def _gram_ridge(G, b, lam, pen):
-    """Solve (G + lam D) k = b, D = diag(pen), by Cholesky (cho_solve; no explicit inverse).
-
-    Unpenalized directions get a jitter of 1e-10 x mean diagonal so that exact
-    rank deficiency (checked separately by :func:`check_excitation`) cannot break it."""
-    import scipy.linalg
-
-    p = G.shape[0]
-    jitter = 1e-10 * max(float(np.trace(G)) / max(p, 1), 1e-300)
-    H = G + np.diag(lam * pen + jitter)
-    return scipy.linalg.cho_solve(scipy.linalg.cho_factor(H, lower=True, check_finite=False), b, check_finite=False)
-
-
-def ridge_cv(A, y, lams, pen, folds: int = 5):
-    """Mean squared contiguous K-fold CV error of ridge regression for each lam.
-
-    Per-fold Gram matrices are formed once; each (fold, lam) is then a p x p
-    Cholesky solve. (LAPACK SVD/QR of tall matrices is slow when BLAS threads
-    compete for cores; the Gram form is 10-100x faster for this model selection,
-    and the final fit still uses the SVD-based :func:`drake_est.bfe.ridge_fit`.)"""
-    A = np.asarray(A, float)
-    y = np.asarray(y, float).ravel()
-    n = A.shape[0]
-    edges = np.linspace(0, n, folds + 1).astype(int)
-    G = A.T @ A
-    b = A.T @ y
-    scores = np.zeros(len(lams))
-    for i in range(folds):
-        sl = slice(edges[i], edges[i + 1])
-        Ak, yk = A[sl], y[sl]
-        Gt, bt = G - Ak.T @ Ak, b - Ak.T @ yk
-        for li, lam in enumerate(lams):
-            k = _gram_ridge(Gt, bt, lam, pen)
-            r = yk - Ak @ k
-            scores[li] += float(r @ r)
-    return scores / n
+    """Cholesky ridge of :mod:`drake_est.regression` (kept name; jitter 1e-10 x mean diagonal)."""
+    return ridge_gram_solve(G, b, lam, pen)
 
 
 # --------------------------------------------------------------------------- the model
@@ -471,10 +439,8 @@ class JointFriction:
             coef, dof, rank = res.coef, res.dof, res.rank
         elif solver == "cholesky":
             G = A.T @ A
-            coef = _gram_ridge(G, A.T @ y, lam, pen)
-            import scipy.linalg
-            H = G + np.diag(lam * pen + 1e-10 * max(float(np.trace(G)) / A.shape[1], 1e-300))
-            dof = float(np.trace(scipy.linalg.cho_solve(scipy.linalg.cho_factor(H), G)))
+            coef = ridge_gram_solve(G, A.T @ y, lam, pen)
+            dof = ridge_gram_dof(G, lam, pen)
             rank = A.shape[1]
         else:
             raise DrakeEstError(f"unknown solver '{solver}' (use 'auto', 'svd' or 'cholesky')")
