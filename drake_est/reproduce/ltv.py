@@ -164,22 +164,10 @@ def ltv_drift(out_dir, quick=False, seed=0, T=None, **kw):
 # ---------------------------------------------------------------------------------------------
 def two_link_arm_plant(time_step=1e-3):
     """A planar two-link arm moving in the horizontal plane (joint axes along gravity, so gravity does
-    no work), built programmatically in a MultibodyPlant: link lengths 0.5 m / 0.4 m, masses 2 / 1 kg."""
-    from pydrake.math import RigidTransform
-    from pydrake.multibody.plant import MultibodyPlant
-    from pydrake.multibody.tree import FixedOffsetFrame, RevoluteJoint, SpatialInertia, UnitInertia
-
-    plant = MultibodyPlant(time_step)
-    bodies = []
-    for i, (mass, length) in enumerate([(2.0, 0.5), (1.0, 0.4)]):
-        # thin rod along +x of the body frame, joint at the body origin
-        G = UnitInertia.ThinRod(length, [1, 0, 0]).ShiftFromCenterOfMass([-length / 2, 0, 0])
-        bodies.append(plant.AddRigidBody(f"link{i + 1}", SpatialInertia(mass, [length / 2, 0, 0], G)))
-    j1 = plant.AddJoint(RevoluteJoint("joint1", plant.world_frame(), bodies[0].body_frame(), [0, 0, 1]))
-    elbow = plant.AddFrame(FixedOffsetFrame("elbow", bodies[0].body_frame(), RigidTransform([0.5, 0, 0])))
-    j2 = plant.AddJoint(RevoluteJoint("joint2", elbow, bodies[1].body_frame(), [0, 0, 1]))
-    plant.Finalize()
-    return plant, (j1, j2)
+    no work): link lengths 0.5 m / 0.4 m, masses 2 / 1 kg; built by
+    :func:`drake_est.systems.builders.MakeTwoLinkArmPlant`."""
+    from drake_est.systems.builders import MakeTwoLinkArmPlant
+    return MakeTwoLinkArmPlant(time_step)
 
 
 def _simulate_arm(plant, u_traj, dt, fc, wall, k_wall, d_wall, q0, v0, substeps=10):
