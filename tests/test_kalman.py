@@ -93,33 +93,115 @@ def test_joseph_form_keeps_covariance_psd_with_tiny_noise():
 def test_bad_input():
     A, B, C, R1, R2, x0, P0, u, y = _model()
     kf = KalmanFilter(A, C, R1, R2, x0, P0, B=B)
-    y_bad = y.copy()
-    y_bad[3, 0] = np.nan
-    with pytest.raises(DataError, match="NaN"):
-        kf.forward_trajectory(u, y_bad)
     with pytest.raises(DataError, match="samples"):
         kf.forward_trajectory(u[:-1], y)
     with pytest.raises(DataError, match="P0"):
         KalmanFilter(A, C, R1, R2, x0, np.eye(3), B=B)
+    with pytest.raises(DataError, match="^R1 is not positive semidefinite"):
+        KalmanFilter(A, C, -R1, R2, x0, P0, B=B)
+    with pytest.raises(DataError, match="^R2 is not positive definite"):
+        KalmanFilter(A, C, R1, 0 * R2, x0, P0, B=B)
+    with pytest.raises(DataError, match="^R2 is not symmetric"):
+        KalmanFilter(A, np.eye(2), R1, np.array([[1.0, 0.5], [0.0, 1.0]]), x0, P0, B=B)
+    A_nan = A.copy()
+    A_nan[1, 0] = np.nan
+    with pytest.raises(DataError, match="^A contains NaN"):
+        KalmanFilter(A_nan, C, R1, R2, x0, P0, B=B)
+    C_nan = C.copy()
+    C_nan[0, 1] = np.inf
+    with pytest.raises(DataError, match="^C contains NaN"):
+        KalmanFilter(A, C_nan, R1, R2, x0, P0, B=B)
+    with pytest.raises(DataError, match="^C has 3 columns"):
+        KalmanFilter(A, np.ones((1, 3)), R1, R2, x0, P0, B=B)
+    At = np.array([A] * (y.shape[0] - 5))
+    with pytest.raises(DataError, match="time-varying A has 20 steps, the data have 25"):
+        KalmanFilter(At, C, R1, R2, x0, P0, B=B).forward_trajectory(u, y)
+    y_inf = y.copy()
+    y_inf[2, 0] = np.inf
+    with pytest.raises(DataError, match="^y contains infinity"):
+        kf.forward_trajectory(u, y_inf)
+    with pytest.raises(DataError, match="^y has 2 columns"):
+        kf.forward_trajectory(u, np.column_stack([y, y]))
 
 
-def test_kalman_filter_system_matches_forward_trajectory():
-    from pydrake.systems.analysis import Simulator
+@pytest.mark.parametrize("fused", [True, False])
+def test_nan_measurement_is_predict_only_and_counted(fused):
+    A, B, C, R1, R2, x0, P0, u, y = _model(seed=4)
+    kf = KalmanFilter(A, C, R1, R2, x0, P0, B=B)
+    yb = y.copy()
+    yb[[3, 10], 0] = np.nan
+    fr = kf.forward_trajectory(u, yb, fused=fused)
+    assert fr.n_missing == 2
+    # step 3 is a pure prediction: filtered = predicted, and the next prediction is A x + B u
+    assert np.allclose(fr.x_filt[3], fr.x_pred[3], atol=1e-14)
+    assert np.allclose(fr.P_filt[3], fr.P_pred[3], atol=1e-14)
+    assert np.allclose(fr.x_pred[4], A @ fr.x_filt[3] + B @ u[3], atol=1e-12)
+    # the likelihood is that of the observed rows only (dense conditioning on the 23 observed values)
+    full = kf.forward_trajectory(u, y, fused=fused)
+    assert fr.loglik != pytest.approx(full.loglik)
+    assert np.all(np.isfinite(fr.x_filt)) and np.isfinite(fr.loglik)
 
-    from drake_est.estimation.kalman_system import KalmanFilterSystem
 
-    A, B, C, R1, R2, x0, P0, u, y = _model(seed=3, T=15)
-    h = 0.1
-    sys = KalmanFilterSystem(A, B, C, R1, R2, x0, P0, period=h)
-    sim = Simulator(sys)
-    ctx = sim.get_mutable_context()
-    fr = KalmanFilter(A, C, R1, R2, x0, P0, B=B).forward_trajectory(u, y)
+def test_fused_loop_equals_numpy_loop(monkeypatch):
+    from drake_est.estimation import kalman_kernels
+
+    rng = np.random.default_rng(5)
+    nx, ny, nu, T = 4, 2, 1, 400
+    A = np.eye(nx) + 0.05 * rng.standard_normal((nx, nx))
+    A *= 0.98 / max(abs(np.linalg.eigvals(A)))
+    B = rng.standard_normal((nx, nu))
+    C = rng.standard_normal((ny, nx))
+    D = 0.1 * rng.standard_normal((ny, nu))
+    R1 = 0.01 * np.eye(nx) + 0.001
+    R2 = np.array([[0.2, 0.05], [0.05, 0.1]])
+    x0, P0 = rng.standard_normal(nx), np.eye(nx)
+    u = rng.standard_normal((T, nu))
+    y = rng.standard_normal((T, ny))
+    y[7] = np.nan
+    kf = KalmanFilter(A, C, R1, R2, x0, P0, B=B, D=D)
+    assert kalman_kernels.use_numba()
+    a = kf.smooth(u, y, fused=True)
+    b = kf.smooth(u, y, fused=False)
+    for f in ("x_filt", "P_filt", "x_pred", "P_pred"):
+        np.testing.assert_allclose(getattr(a.filtered, f), getattr(b.filtered, f), atol=1e-10, rtol=0)
+    np.testing.assert_allclose(a.x_smooth, b.x_smooth, atol=1e-10, rtol=0)
+    np.testing.assert_allclose(a.P_smooth, b.P_smooth, atol=1e-10, rtol=0)
+    assert a.loglik == pytest.approx(b.loglik, abs=1e-10)
+    assert a.filtered.n_missing == b.filtered.n_missing == 1
+    monkeypatch.setenv("DRAKE_EST_NO_NUMBA", "1")
+    assert not kalman_kernels.use_numba()
+    c = kf.smooth(u, y)
+    np.testing.assert_allclose(c.x_smooth, b.x_smooth, atol=0, rtol=0)
+
+
+def test_protocol_generic_loop_equals_override():
+    from drake_est.estimation.protocol import Filter
+
+    A, B, C, R1, R2, x0, P0, u, y = _model(seed=6)
+    kf = KalmanFilter(A, C, R1, R2, x0, P0, B=B)
+    assert isinstance(kf, Filter)
+    belief = kf.initial_belief()
+    ll = 0.0
     for t in range(y.shape[0]):
-        sys.GetInputPort("u").FixValue(ctx, u[t])
-        sys.GetInputPort("y").FixValue(ctx, y[t])
-        xh = sys.GetOutputPort("state_estimate").Eval(ctx)
-        P = sys.GetOutputPort("covariance").Eval(ctx).reshape(2, 2)
-        assert np.allclose(xh, fr.x_filt[t], atol=1e-12)
-        assert np.allclose(P, fr.P_filt[t], atol=1e-12)
-        sim.AdvanceTo((t + 0.5) * h)
-    assert sys.GetOutputPort("log_likelihood").Eval(ctx)[0] == pytest.approx(fr.loglik, abs=1e-9)
+        *belief, l_t = kf.correct(*belief, y=y[t], u=u[t], t=t)
+        ll += l_t
+        belief = kf.predict(*belief, u=u[t], t=t)
+    fr = kf.forward_trajectory(u, y)
+    assert np.allclose(kf.mean(belief), fr.x_pred[-1], atol=1e-10)
+    assert np.allclose(kf.cov(belief), fr.P_pred[-1], atol=1e-10)
+    assert ll == pytest.approx(fr.loglik, abs=1e-10)
+
+
+def test_filterpy_agrees():
+    filterpy = pytest.importorskip("filterpy.kalman")
+    A, B, C, R1, R2, x0, P0, u, y = _model(seed=7, T=60)
+    kf = KalmanFilter(A, C, R1, R2, x0, P0)
+    fp = filterpy.KalmanFilter(dim_x=2, dim_z=1)
+    fp.x, fp.P, fp.F, fp.H, fp.Q, fp.R = x0.copy(), P0.copy(), A, C, R1, R2
+    # filterpy's batch_filter predicts first; give it our prior one step back: x_{-1} with A x_{-1} = x0
+    mu, cov, _, _ = fp.batch_filter(y, update_first=True)
+    xs, Ps, _, _ = fp.rts_smoother(mu, cov)
+    sm = kf.smooth(None, y)
+    np.testing.assert_allclose(sm.filtered.x_filt, mu, atol=1e-10)
+    np.testing.assert_allclose(sm.x_smooth, xs, atol=1e-10)
+    np.testing.assert_allclose(sm.P_smooth, Ps, atol=1e-10)

@@ -109,9 +109,10 @@ class Filter(ABC):
         u, y, T, missing = check_inputs(u, y, getattr(self, "nu", None), getattr(self, "ny", None))
         belief = self.initial_belief()
         nx = self.nx
-        xf = np.empty((T, nx))
+        xshape = np.shape(self.mean(belief))        # (nx,), or (nx, r) for a multi-column Kalman state
+        xf = np.empty((T,) + xshape)
         Pf = np.empty((T, nx, nx))
-        xp = np.empty((T + 1, nx))
+        xp = np.empty((T + 1,) + xshape)
         Pp = np.empty((T + 1, nx, nx))
         ll = 0.0
         for t in range(T):
