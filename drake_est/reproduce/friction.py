@@ -146,7 +146,7 @@ def friction_energy(out_dir, quick: bool = False, seed: int = 0, realizations: i
 
 
 def _fit_models(log, truth, models, joint, nominal="asymmetric"):
-    from drake_est.cli.fit_friction import fit_log
+    from drake_est.cases.friction_fit import fit_log
 
     out = {}
     for name in models:
@@ -167,7 +167,7 @@ def friction_models(out_dir, quick: bool = False, seed: int = 0, **kw) -> dict:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from drake_est.cli.fit_friction import plot_result
+    from drake_est.cases.friction_fit import plot_result
     from drake_est.synth import synthesize
 
     out_dir = Path(out_dir)
