@@ -38,13 +38,11 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_est.data import Log
+from drake_est.effects import EFFECTS  # the one effect list (re-exported here)
 from drake_est.errors import DrakeEstError
 from drake_est.robots import irb140_metadata, models_dir
 from drake_est.systems.builders import (Irb140SimulationConfig, MakeIrb140Simulation, PlantConfig,
                                        TrackingControllerConfig)
-
-EFFECTS = ("position_dependent_friction", "motor_position_ripple", "energy_dependent_friction",
-           "asymmetric_coulomb", "gear_coupling", "payload", "abrupt_change")
 
 
 # ----------------------------------------------------------------------------- truth model

@@ -84,3 +84,15 @@ def test_cli_synth_writes_loadable_log(tmp_path, capsys):
     assert log.n_samples > 500 and (tmp_path / "log.csv.truth.json").exists()
     assert main(["synth", "--effect", "nonsense", "--out", str(out)]) == 2
     assert "unknown effect 'nonsense'" in capsys.readouterr().err
+
+
+def test_one_effect_list():
+    """synth, the diagnosis and drake_est.effects share one list of effect names (issue #18)."""
+    import drake_est.effects as eff
+    from drake_est.diagnose import VOCABULARY
+    from drake_est.synth import EFFECTS as synth_effects
+    assert synth_effects is eff.EFFECTS and VOCABULARY is eff.EFFECTS
+    assert eff.check_effect("payload") == "payload"
+    from drake_est.errors import DataError
+    with pytest.raises(DataError, match="unknown effect 'bogus'"):
+        eff.check_effect("bogus")

@@ -27,16 +27,16 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.signal
 
+from drake_est.effects import EFFECTS, EXTRA_EFFECTS  # noqa: F401
+
 RIPPLE_BASIS = 8
 BFE_SIZES = (8, 16, 32, 64)
 #: FFT bins of the frequency scan: the highest frequency scanned is about
 #: RIPPLE_MAX_FFT / (64 span) cycles per rad (e.g. 680 cycles/rad over a 3 rad sweep), or the
 #: sampling-density limit of the positions if lower
 RIPPLE_MAX_FFT = 1 << 17
-VOCABULARY = ("position_dependent_friction", "motor_position_ripple", "energy_dependent_friction",
-              "asymmetric_coulomb", "gear_coupling", "payload", "abrupt_change")
-#: effect names added to the fixed vocabulary (for generic axes, whose nominal model has no gravity)
-EXTRA_EFFECTS = ("position_dependent_load",)
+#: the effect vocabulary: the one list of :mod:`drake_est.effects`
+VOCABULARY = EFFECTS
 
 
 @dataclass
