@@ -384,6 +384,14 @@ class ParticleFilter(Filter):
                                       h_point=h_point, nu=nu)
 
 
+def _jit_kernels():
+    """The compiled helpers of :mod:`pf_kernels`, or None (no numba, or DRAKE_EST_NO_NUMBA=1)."""
+    if os.environ.get("DRAKE_EST_NO_NUMBA") == "1":
+        return None
+    from drake_est.estimation import pf_kernels
+    return pf_kernels if pf_kernels.HAVE_NUMBA else None
+
+
 class GaussianParticleFilter(ParticleFilter):
     """The filter of :meth:`ParticleFilter.gaussian` (additive Gaussian noise); it also knows
     log p(x+|x) (for FFBSi) and runs a vectorised loop with pre-drawn normals."""
@@ -408,6 +416,7 @@ class GaussianParticleFilter(ParticleFilter):
         self._logdet1 = 2.0 * float(np.sum(np.log(np.diag(self.L1))))
         self._g0 = -0.5 * (self._logdet2 + ny * _LOG2PI)
         self._diag2 = np.allclose(self.L2, np.diag(np.diag(self.L2)))
+        self._diag1 = bool(np.all(self.L1 == np.diag(np.diag(self.L1))))
         self._inv_sd2 = 1.0 / np.diag(self.L2)
         self.f_point, self.h_point = f_point, h_point
         n = n_particles
@@ -428,7 +437,8 @@ class GaussianParticleFilter(ParticleFilter):
         xn = np.asarray(self.f(x, u, t), dtype=float)
         if xn.shape != x.shape:
             raise DataError(f"f returned shape {xn.shape}, expected {x.shape} (transition)")
-        return xn + self.normals(t) @ self.L1.T
+        z = self.normals(t)
+        return xn + (z * np.diag(self.L1) if self._diag1 else z @ self.L1.T)
 
     def _meas_logpdf(self, x, y, u, t):
         e = np.asarray(y, float)[None, :] - self._h(x, u, t)
@@ -458,6 +468,13 @@ class GaussianParticleFilter(ParticleFilter):
                 return pf_kernels.run_fused(self, u, y, covariances=covariances)
         return self._numpy_loop(u, y, covariances)
 
+    def _scaled_noise(self, z):
+        """Process noise L1 z of a chunk of standard normals z (K, N, nx)."""
+        if self._diag1:
+            return z * np.diag(self.L1)
+        K, N, nx = z.shape
+        return (z.reshape(K * N, nx) @ self.L1.T).reshape(K, N, nx)
+
     def _numpy_loop(self, u, y, covariances):
         u, y, T, missing = check_inputs(u, y, self.nu, self.ny)
         N, nx = self.N, self.nx
@@ -470,25 +487,97 @@ class GaussianParticleFilter(ParticleFilter):
         xp = np.empty((T + 1, nx)); Pp = np.empty((T + 1, nc, nc))
         ess = np.full(T, np.nan)
         n_res, degenerate, ll = 0, [], 0.0
-        f, K, L1T, thr = self.f, self.chunk, self.L1.T, self.resample_threshold * N
+        f, h, K, L1T, thr = self.f, self.h, self.chunk, self.L1.T, self.resample_threshold * N
+        g0, diag2, inv_sd, L2 = self._g0, self._diag2, self._inv_sd2, self.L2
         V = uu = None
+        shape_ok = False
+        jit = _jit_kernels()
+        if jit is not None:
+            # compiled internals (weighting, moments, resampling; the user's f and h stay numpy): same numbers
+            x = np.ascontiguousarray(x)
+            xbuf, wbuf = np.empty_like(x), np.empty(N)
+            Pdummy = np.empty((nx, nx))
+            ones = np.ones(self.ny)
         for t in range(T):
+            if jit is not None:
+                k = t % K
+                if k == 0:
+                    z, uu = self._draws(t // K)
+                    V = self._scaled_noise(z)
+                jit.moments(x, w, covariances, xp[t], Pp[t] if covariances else Pdummy)
+                ut = None if u is None else u[t]
+                status = -1
+                if not missing[t]:
+                    yh = h(x, ut, t) if shape_ok else self._h(x, ut, t)
+                    if diag2:
+                        status, l_t, e = jit.weight_step(x, logw, (yh if yh.flags.c_contiguous and yh.dtype == np.float64 else np.ascontiguousarray(yh, dtype=float)), y[t],
+                                                         inv_sd, thr, uu[k], covariances, xf[t],
+                                                         Pf[t] if covariances else Pdummy, xbuf, wbuf)
+                    if status >= 0:
+                        if status == 1:
+                            x, xbuf = xbuf, x
+                        w = wbuf
+                        ll += l_t + g0
+                        ess[t] = e
+                        n_res += status
+                    else:                       # general path (rare cases, full R2)
+                        e_ = yh - y[t]
+                        e_ = e_ * inv_sd if diag2 else solve_triangular(L2, e_.T, lower=True).T
+                        g = g0 - 0.5 * np.einsum("ij,ij->i", e_, e_)
+                        x, logw, l_t, (e, r, d, xf[t], P) = self._weight(x, logw, g, t)
+                        x = np.ascontiguousarray(x)
+                        if covariances:
+                            Pf[t] = P
+                        w = np.exp(logw)
+                        logw = logw.copy()
+                        ll += l_t
+                        ess[t] = e
+                        n_res += r
+                        if d:
+                            degenerate.append(t)
+                else:
+                    xf[t] = xp[t]
+                    if covariances:
+                        Pf[t] = Pp[t]
+                x_old = x
+                xn = f(x_old, ut, t)
+                if not shape_ok:
+                    if getattr(xn, "shape", None) != (N, nx):
+                        raise DataError(f"f returned shape {np.shape(xn)}, expected {(N, nx)} (transition)")
+                    shape_ok = not missing[t]
+                x = np.add(xn, V[k], out=xbuf)          # both buffers are the filter's own arrays
+                xbuf = x_old
+                if not np.isfinite(np.add.reduce(x, axis=None)):
+                    bad = ~np.isfinite(x).all(axis=1)
+                    if bad.any():
+                        x, logw = self._replace_bad(x, np.where(bad, -np.inf, logw), t)
+                        x = np.ascontiguousarray(x)
+                        w = np.exp(logw)
+                continue
             k = t % K
             if k == 0:
                 z, uu = self._draws(t // K)
-                V = z @ L1T
+                V = self._scaled_noise(z)
             if covariances:
                 xp[t], Pp[t] = weighted_moments(x, w)
             else:
                 xp[t] = w @ x
             ut = None if u is None else u[t]
             if not missing[t]:
-                g = self._meas_logpdf(x, y[t], ut, t)
-                a = logw + g
+                # log N(y; h(x), R2) up to the constant g0 (added to the log-likelihood below)
+                if shape_ok:
+                    e = h(x, ut, t) - y[t]
+                else:
+                    e = self._h(x, ut, t) - y[t]
+                if diag2:
+                    e *= inv_sd
+                else:
+                    e = solve_triangular(L2, e.T, lower=True).T
+                a = logw - 0.5 * np.einsum("ij,ij->i", e, e)
                 amax = a.max()
-                if not np.isfinite(amax) or not np.isfinite(a).all():
+                if not np.isfinite(amax):
                     # rare cases (zero / NaN likelihoods) go through the shared weighting code
-                    x, logw, l_t, (e, r, d, xf[t], P) = self._weight(x, logw, g, t)
+                    x, logw, l_t, (e, r, d, xf[t], P) = self._weight(x, logw, a - logw + g0, t)
                     if covariances:
                         Pf[t] = P
                     w = np.exp(logw)
@@ -512,6 +601,7 @@ class GaussianParticleFilter(ParticleFilter):
                         logw, w = logw_u, w_u
                     else:
                         logw = a - l_t
+                    l_t += g0
                 ll += l_t
                 ess[t] = e
                 n_res += r
@@ -520,13 +610,16 @@ class GaussianParticleFilter(ParticleFilter):
                 if covariances:
                     Pf[t] = Pp[t]
             xn = f(x, ut, t)
-            if getattr(xn, "shape", None) != (N, nx):
-                raise DataError(f"f returned shape {np.shape(xn)}, expected {(N, nx)} (transition)")
+            if not shape_ok:
+                if getattr(xn, "shape", None) != (N, nx):
+                    raise DataError(f"f returned shape {np.shape(xn)}, expected {(N, nx)} (transition)")
+                shape_ok = not missing[t]        # h has been checked once as well
             x = xn + V[k]
-            if not np.isfinite(x).all():
+            if not np.isfinite(np.add.reduce(x, axis=None)):
                 bad = ~np.isfinite(x).all(axis=1)
-                x, logw = self._replace_bad(x, np.where(bad, -np.inf, logw), t)
-                w = np.exp(logw)
+                if bad.any():
+                    x, logw = self._replace_bad(x, np.where(bad, -np.inf, logw), t)
+                    w = np.exp(logw)
         if covariances:
             xp[T], Pp[T] = weighted_moments(x, w)
         else:

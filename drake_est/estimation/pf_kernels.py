@@ -207,8 +207,79 @@ def _systematic(x, w, u0, c, xn):
     x[:, :] = xn
 
 
+def weight_step(x, logw, yh, y, inv_sd, thr, u0, cov, mout, Pout, xbuf, w):
+    """One measurement update of the generic Gaussian PF (user's h already evaluated: yh (N, ny)).
+
+    a_i = logw_i - 0.5 |(yh_i - y) * inv_sd|^2; normalises into ``logw``, writes the weighted mean (and
+    covariance) of x, resamples into ``xbuf`` when ESS < thr.  Returns (status, log-sum, ess): status -1
+    = every weight zero / non-finite (nothing modified; the caller takes the general path), 0 = weighted,
+    1 = weighted and resampled (the particles are in ``xbuf``)."""
+    N, ny = yh.shape
+    amax = -np.inf
+    a = np.empty(N)
+    for i in range(N):
+        q = 0.0
+        for p in range(ny):
+            e = (yh[i, p] - y[p]) * inv_sd[p]
+            q += e * e
+        ai = logw[i] - 0.5 * q
+        a[i] = ai
+        if ai > amax or ai != ai:
+            amax = ai
+    if not np.isfinite(amax):
+        return -1, 0.0, 0.0
+    s = 0.0
+    for i in range(N):
+        wi = np.exp(a[i] - amax)
+        w[i] = wi
+        s += wi
+    lse = amax + np.log(s)
+    s2 = 0.0
+    for i in range(N):
+        w[i] /= s
+        s2 += w[i] * w[i]
+    ess = 1.0 / s2
+    m = np.empty(x.shape[1])
+    _wmoments(x, w, m, mout, Pout, cov)
+    if ess < thr:
+        _systematic_into(x, w, u0, xbuf)
+        ln = -np.log(N)
+        for i in range(N):
+            logw[i] = ln
+            w[i] = 1.0 / N
+        return 1, lse, ess
+    for i in range(N):
+        logw[i] = a[i] - lse
+    return 0, lse, ess
+
+
+def _systematic_into(x, w, u0, xn):
+    N, nx = x.shape
+    c = np.empty(N)
+    s = 0.0
+    for i in range(N):
+        s += w[i]
+        c[i] = s
+    i = 0
+    for j in range(N):
+        pos = (u0 + j) / N
+        while i < N - 1 and c[i] < pos:
+            i += 1
+        for p in range(nx):
+            xn[j, p] = x[i, p]
+
+
+def moments(x, w, cov, mout, Pout):
+    """Weighted mean (and covariance) of x with normalised weights w."""
+    m = np.empty(x.shape[1])
+    _wmoments(x, w, m, mout, Pout, cov)
+
+
 if HAVE_NUMBA:
     _wmoments = numba.njit(cache=True)(_wmoments)
+    _systematic_into = numba.njit(cache=True)(_systematic_into)
+    weight_step = numba.njit(cache=True)(weight_step)
+    moments = numba.njit(cache=True)(moments)
     _moments = numba.njit(cache=True)(_moments)
     _systematic = numba.njit(cache=True)(_systematic)
     _chunk_loop_jit = numba.njit(_chunk_loop)
