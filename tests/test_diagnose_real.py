@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from drake_est.data import Log
-from drake_est.datasets._paths import default_data_dir
+from drake_est.datasets.paths import default_data_dir
 from drake_est.diagnose import diagnose
 
 DATA = default_data_dir()

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from drake_est.datasets._paths import default_data_dir
+from drake_est.datasets.paths import default_data_dir
 from drake_est.errors import DataError
 
 DATA = default_data_dir()

@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from drake_est.datasets._paths import default_data_dir
+from drake_est.datasets.paths import default_data_dir
 
 HAVE = (default_data_dir() / "odrive_cogging" / "slow2" / "nocomp_0.npy").exists()
 needs_data = pytest.mark.skipif(not HAVE, reason="ODrive data (../shared/data/odrive_cogging) not present")

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from drake_est.datasets._paths import default_data_dir
+from drake_est.datasets.paths import default_data_dir
 from drake_est.errors import DataError
 
 HAVE_DATA = (default_data_dir() / "odrive_cogging" / "slow2" / "nocomp_0.npy").exists()
@@ -35,7 +35,7 @@ def test_missing_data_is_a_data_error(tmp_path):
 
 @needs_data
 def test_cogging_case_study(tmp_path):
-    from drake_est.datasets.odrive import cogging_case_study
+    from drake_est.cases.cogging_spectral import cogging_case_study
 
     r = cogging_case_study(out_dir=tmp_path)
     # harmonics near 7, 14, 28 and 36 per revolution are found without being told

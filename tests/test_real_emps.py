@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from drake_est.datasets._paths import default_data_dir
+from drake_est.datasets.paths import default_data_dir
 from drake_est.errors import DataError
 
 HAVE = (default_data_dir() / "emps" / "DATA_EMPS.mat").exists()

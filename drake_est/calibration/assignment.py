@@ -9,8 +9,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_est.calibration.laser import fit_plane
 from drake_est.errors import IdentifiabilityError
+
+
+def fit_plane(points):
+    """PCA plane fit (13.14)-(13.15): unit normal n, distance d (n^T p = d), singular values."""
+    mu = points.mean(axis=0)
+    _, s, Vt = np.linalg.svd(points - mu, full_matrices=False)
+    n = Vt[-1]
+    d = float(n @ mu)
+    if d < 0:
+        n, d = -n, -d
+    return n, d, s
 
 
 def ransac_planes(points, threshold: float, n_planes: int | None = None, min_inliers: int = 10,

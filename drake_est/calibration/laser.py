@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from drake_est.calibration.assignment import assign_scans_to_planes, fit_plane  # noqa: F401 (fit_plane: public here too)
 from drake_est.calibration.linalg import lstsq, tls
 from drake_est.calibration.so3 import as_matrix, as_pose_stack, exp_se3, project_to_so3, rotation_error
 from drake_est.errors import DataError, IdentifiabilityError
@@ -75,17 +76,6 @@ def transform_points(poses, T, points, pose_index) -> np.ndarray:
     Tf = poses[pose_index]  # (N, 4, 4)
     ps = points @ T[:3, :3].T + T[:3, 3]
     return np.einsum("nij,nj->ni", Tf[:, :3, :3], ps) + Tf[:, :3, 3]
-
-
-def fit_plane(points):
-    """PCA plane fit (13.14)-(13.15): unit normal n, distance d (n^T p = d), singular values."""
-    mu = points.mean(axis=0)
-    _, s, Vt = np.linalg.svd(points - mu, full_matrices=False)
-    n = Vt[-1]
-    d = float(n @ mu)
-    if d < 0:
-        n, d = -n, -d
-    return n, d, s
 
 
 def detect_kind(points, tol: float = 1e-12):
@@ -297,7 +287,6 @@ def calibrate_laser(poses, points, pose_index, labels=None, T0=None, n_iter: int
     T[:3, :3] = project_to_so3(T[:3, :3])
 
     if lab is None:
-        from drake_est.calibration.assignment import assign_scans_to_planes
 
         labels_used = assign_scans_to_planes(transform_points(P, T, pts, idx), idx, threshold=assign_threshold,
                                              n_planes=n_planes, seed=seed)

@@ -1,5 +1,5 @@
 """ODrive cogging case study, the diagnosis half (the LPV spectral half is
-:func:`drake_est.datasets.odrive.cogging_case_study`).
+:func:`drake_est.cases.cogging_spectral.cogging_case_study`).
 
 * Cross-log validation: models are fitted on one uncompensated log (``slow2/nocomp_0``) and
   evaluated on every other uncompensated log.  Nominal model: current = J qdd + Fv qd +

@@ -20,7 +20,7 @@ import numpy as np
 import scipy.io
 
 from drake_est.data import from_arrays
-from drake_est.datasets._paths import data_file
+from drake_est.datasets.paths import data_file
 from drake_est.errors import DataError
 
 FILES = {"emps": "emps/DATA_EMPS.mat", "pulses": "emps/DATA_EMPS_PULSES.mat"}

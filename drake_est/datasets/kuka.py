@@ -24,7 +24,7 @@ import numpy as np
 import scipy.io
 
 from drake_est.data import from_arrays, smooth_derivatives
-from drake_est.datasets._paths import data_file
+from drake_est.datasets.paths import data_file
 from drake_est.errors import DataError
 
 TRAJECTORIES = ("A", "B", "C")

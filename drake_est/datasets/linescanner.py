@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_est.datasets._paths import data_file
+from drake_est.datasets.paths import data_file
 from drake_est.errors import DataError
 
 # Euler-angle conventions tried for the robot poses: name -> (axes, intrinsic?)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drake_est.datasets._paths import data_file
+from drake_est.datasets.paths import data_file
 from drake_est.errors import DataError
 
 ALPHA_DEG = np.array([0.0, -90.0, 90.0, -90.0, 90.0, -90.0, 90.0])

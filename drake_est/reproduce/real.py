@@ -5,7 +5,7 @@
 * ``real-kuka``: KUKA KR300 per-axis friction + gravity (fit on two trajectories, validate on the
   third), gearbox deflection vs torque on axes 1-3, ``diagnose`` on each axis;
 * ``real-cogging``: ODrive cogging torque: LPV spectral analysis (:func:`cogging_case_study` of
-  :mod:`drake_est.datasets.odrive`) and ``diagnose`` fitted on one log, validated on others.
+  :mod:`drake_est.cases.cogging_spectral`) and ``diagnose`` fitted on one log, validated on others.
 """
 from __future__ import annotations
 
@@ -70,7 +70,7 @@ def real_kuka(out_dir, quick: bool = False, seed: int = 0, data_dir=None, **kw) 
 def real_cogging(out_dir, quick: bool = False, seed: int = 0, data_dir=None, **kw) -> dict:
     """ODrive cogging: LPV spectral harmonics, cross-log validation, diagnose on nocomp/comp logs."""
     from drake_est.cases.cogging import cogging_diagnosis_study
-    from drake_est.datasets.odrive import cogging_case_study
+    from drake_est.cases.cogging_spectral import cogging_case_study
     out = Path(out_dir)
     spec = cogging_case_study(data_dir=data_dir, out_dir=out)
     diag = cogging_diagnosis_study(data_dir=data_dir, out_dir=out, seed=seed, quick=quick)

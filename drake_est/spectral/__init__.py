@@ -19,9 +19,9 @@ Main entry points
 from drake_est.spectral.basis import ScheduleBasis
 from drake_est.spectral.classic import lomb_scargle, periodogram, resample_uniform, top_peaks, welch
 from drake_est.spectral.detect import PeriodicComponents, fft_scan, find_periodic_components
-from drake_est.spectral.lpv import (LPVSpectrum, complex_normal_params, real_covariance_from_complex,
+from drake_est.spectral.lpv import (LPVSpectrum, complex_normal_params, lssa, real_covariance_from_complex,
                                     sample_complex_normal)
-from drake_est.spectral.lssa import (check_frequency_grid, frequency_grid, frequency_resolution, ls_scan, lssa,
+from drake_est.spectral.lssa import (check_frequency_grid, frequency_grid, frequency_resolution, ls_scan,
                                      quantization_step, sampling_density_limit)
 from drake_est.spectral.sparse import SparseLPVSpectrum, group_lasso_admm, group_lasso_drake
 

@@ -648,3 +648,10 @@ class LPVSpectrum:
         """Indices of the ``n`` largest components of the power spectrum (descending)."""
         P = self.power_spectrum(kind, v)
         return np.argsort(-P)[:n]
+
+
+def lssa(x, y, freqs, lam: float = 0.0):
+    """Joint least-squares spectrum (10.5) of ``y`` sampled at arbitrary ``x`` on the grid ``freqs``
+    (cycles per unit x).  Returns a fitted :class:`LPVSpectrum` with one constant basis function; its
+    ``.coef[:, 0]`` are the complex Fourier coefficients ``k``."""
+    return LPVSpectrum(freqs, n_basis=1, lam=lam).fit(x, y)
