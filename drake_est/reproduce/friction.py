@@ -33,7 +33,7 @@ def friction_energy(out_dir, quick: bool = False, seed: int = 0, realizations: i
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from drake_est.identification.energy import fit_energy, initial_guess, simulate_energy_system
+    from drake_est.identification.friction import fit_energy, initial_guess, simulate_energy_system
     from drake_est.identification.friction import build_model
 
     out_dir = Path(out_dir)
