@@ -1456,18 +1456,17 @@ def ltv_filter_step(k, P, x, u, x_next, lam, sigma_e=1.0, Lambda=None):
     Time update P += sigma_e^2 / lam^2 Lambda^{-1} (the drift of k between steps), then the measurement
     update with the regression x_next = [A B] [x; u] + e in Joseph form.  ``k`` is (p, n) = [A B]^T,
     ``P`` (p, p) the covariance of each row of [A B].  Returns (k_{t|t}, P_{t|t}, innovation)."""
+    from drake_est.estimation.kalman import kalman_correct, kalman_predict
+
     phi = np.concatenate([np.atleast_1d(x), np.atleast_1d(u)])
     s2 = float(sigma_e) ** 2
     p = P.shape[0]
-    P = P + s2 / float(lam) ** 2 * np.linalg.solve(_Lambda(Lambda, p), np.eye(p))
-    Pphi = P @ phi
-    S = float(phi @ Pphi) + s2
-    K = Pphi / S
+    # the project's Kalman steps: random-walk prediction (A = I), then the Joseph-form correction with the
+    # regression row phi^T as a 1 x p measurement matrix and the n state components as r = n columns
+    k, P = kalman_predict(k, P, np.eye(p), s2 / float(lam) ** 2 * np.linalg.solve(_Lambda(Lambda, p), np.eye(p)))
     e = np.atleast_1d(x_next) - k.T @ phi
-    k = k + np.outer(K, e)
-    IK = np.eye(p) - np.outer(K, phi)
-    P = IK @ P @ IK.T + s2 * np.outer(K, K)
-    return k, 0.5 * (P + P.T), e
+    k, P, _ = kalman_correct(k, P, np.atleast_1d(x_next)[None, :], phi[None, :], np.array([[s2]]))
+    return k, P, e
 
 
 def ltv_filter(x, u, lam, sigma_e=1.0, Lambda=None, k0=None, p0=1e4, y=None):
