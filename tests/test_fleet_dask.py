@@ -117,6 +117,7 @@ def test_killed_worker_loses_and_duplicates_nothing(generic_fleet, tmp_path):
     assert len(keys) == len(set(keys)) == s["logs"] and c["unfinished"] == 0
 
 
+@pytest.mark.slow
 def test_interrupted_run_restarts_without_duplicates(generic_fleet, tmp_path):
     """Ctrl-C on `drake-est fleet diagnose` after some logs; the rerun does only the rest."""
     import psutil
