@@ -132,6 +132,20 @@ def test_save_load_and_ltv_prior(tmp_path):
     np.testing.assert_allclose(k, np.swapaxes(J, 1, 2))
 
 
+def test_model_as_ltv_prior():
+    """A tight prior from the learned model pins the LTV estimate to the model's Jacobians (Sec. 7.5)."""
+    from drake_est.identification.ltv import ltv_smoother
+    A, B, xs, us = _linear_data(6, T=40)
+    model = NeuralDynamicsModel(hidden=(4,), form="g", epochs=3, progress_bar=False).fit(xs, us)
+    x, u = xs[0], us[0][:-1]
+    fit = ltv_smoother(x, u, lam=1.0, prior=model.ltv_prior(1e-8))
+    J = model.jacobian(x[:-1], u)
+    np.testing.assert_allclose(fit.A, J[:, :, :3], atol=1e-3)
+    np.testing.assert_allclose(fit.B, J[:, :, 3:], atol=1e-3)
+    with pytest.raises(DataError, match="cov"):
+        model.ltv_prior(np.eye(2))
+
+
 def test_bad_input_raises_one_line_data_error():
     rng = np.random.default_rng(0)
     x, u = rng.normal(size=(20, 2)), rng.normal(size=(20, 1))

@@ -525,9 +525,24 @@ class NeuralDynamicsModel:
         n = self.n_x_
         return J[..., :n], J[..., n:]
 
+    def ltv_prior(self, cov):
+        """Dynamics prior (7.15) for ``drake_est.identification.ltv.ltv_smoother(prior=...)``: a callable
+        ``prior(t, x_t, u_t) -> ([A B] at (x_t, u_t), cov)`` with ``cov`` (n+m, n+m) the prior covariance of
+        each row of [A B] (Sec. 7.5, a learned model as prior)."""
+        self._check_fitted()
+        cov = np.asarray(cov, float)
+        p = self.n_x_ + self.n_u_
+        cov = cov * np.eye(p) if cov.ndim == 0 else (np.diag(cov) if cov.ndim == 1 else cov)
+        if cov.shape != (p, p) or not np.all(np.isfinite(cov)):
+            raise DataError(f"cov must be a finite ({p}, {p}) matrix, a length-{p} vector or a scalar")
+
+        def prior(t, x_t, u_t):
+            return self.jacobian(np.asarray(x_t, float), None if self.n_u_ == 0 else np.asarray(u_t, float)), cov
+        return prior
+
     def ltv_prior_mean(self, x, u=None):
-        """k_t = [A_t B_t]^T (T, n+m, n) along a trajectory: the prior mean for the LTV identifier
-        (Sec. 7.5, ``drake_est.identification.ltv.ltv_smoother(prior=...)``)."""
+        """k_t = [A_t B_t]^T (T, n+m, n) along a trajectory: the prior mean in the layout of
+        ``drake_est.identification.ltv.tv_regression_smoother(prior_mean=...)``."""
         J = np.atleast_3d(self.jacobian(np.atleast_2d(x), None if u is None else np.atleast_2d(u)))
         return np.swapaxes(J, 1, 2)
 
