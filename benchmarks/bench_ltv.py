@@ -23,6 +23,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
+import json
 import time
 
 import numpy as np
@@ -231,16 +232,42 @@ def _dense_closed_form(phi, Y, lam):
     return np.linalg.solve(A.T @ A + lam ** 2 * D.T @ D, A.T @ Y.reshape(-1))
 
 
+def check(res: dict) -> list:
+    """The targets of issue 5 on ``run()``'s result (moved here from tests/test_ltv_benchmark.py); returns the
+    failed ones (empty when all hold)."""
+    s, g = res["smoother"], res["group_lasso"]
+    targets = {
+        "Kalman-smoother solution vs MathematicalProgram/Clarabel QP <= 1e-6": s["rel_err_vs_clarabel"] <= 1e-6,
+        "smoother >= 10x faster than OSQP and Clarabel": s["ratio_osqp"] >= 10 and s["ratio_clarabel"] >= 10,
+        "smoother faster than sparse normal equations": s["ratio_sparse_total"] > 1 and s["ratio_sparse_solve"] > 1,
+        "group lasso cost within 1e-4 of Clarabel": abs(g["solver_rel_cost_err"]) <= 1e-4,
+        "group lasso >= 5x faster than Clarabel's solve": g["ratio_vs_clarabel_solve"] >= 5,
+        "ADMM cost within 1e-4": abs(g["admm_rel_cost_err"]) <= 1e-4,
+        "dense group lasso cost within 1e-4": abs(res["group_lasso_dense"]["solver_rel_cost_err"]) <= 1e-4,
+        "long group lasso finds the change at 12345 +- 3": abs(res["group_lasso_long"]["block_1"]["change"] - 12345) <= 3,
+    }
+    return [k for k, ok in targets.items() if not ok]
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--T", type=int, default=4000)
     ap.add_argument("--T-lasso", type=int, default=2000)
     ap.add_argument("--lasso-only", action="store_true", help="run part 2 (group lasso) only")
+    ap.add_argument("--json", default=None, help="write the figures to this file")
+    ap.add_argument("--check", action="store_true", help="exit 1 when a target of check() is missed")
     a = ap.parse_args()
     if a.lasso_only:
         group_lasso(a.repeat, a.T_lasso)
         group_lasso_dense(a.repeat, a.T_lasso)
         group_lasso_long(a.repeat)
     else:
-        run(a.repeat, a.T, a.T_lasso)
+        res = run(a.repeat, a.T, a.T_lasso)
+        if a.json:
+            with open(a.json, "w") as f:
+                json.dump(res, f, indent=2, default=float)
+        failed = check(res)
+        for k in failed:
+            print("MISSED:", k)
+        raise SystemExit(1 if (a.check and failed) else 0)

@@ -53,6 +53,33 @@ def run(repeats: int = 1) -> dict:
     return out
 
 
+def check(res: dict) -> list:
+    """The acceptance targets of the LPV benchmark (moved here from tests/test_spectral_bench.py); returns the
+    failed ones (empty when all hold)."""
+    d = res["direct_N50000_p2000"]
+    a = res["auto_N50000_p4000"]
+    targets = {"direct solver used for 2000 parameters": d["solver"] == "direct" and d["params"] == 2000,
+               "direct N=50000, 2000 parameters < 10 s (2 cores)": d["seconds"] < 10.0,
+               "iterative solver chosen for 4000 parameters and converged": a["solver"] == "iterative"
+               and bool(a.get("converged")),
+               "find_periodic_components frequency within 1 %":
+               res["find_periodic_components_N45000"]["rel_error"] < 0.01}
+    return [k for k, ok in targets.items() if not ok]
+
+
 if __name__ == "__main__":
-    res = run(repeats=int(sys.argv[1]) if len(sys.argv) > 1 else 1)
+    import argparse
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("repeats", nargs="?", type=int, default=1)
+    ap.add_argument("--json", default=None, help="write the figures to this file")
+    ap.add_argument("--check", action="store_true", help="exit 1 when an acceptance target is missed")
+    args = ap.parse_args()
+    res = run(repeats=args.repeats)
     print(json.dumps(res, indent=2, default=float))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(res, f, indent=2, default=float)
+    failed = check(res)
+    for k in failed:
+        print("MISSED:", k)
+    sys.exit(1 if (args.check and failed) else 0)

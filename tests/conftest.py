@@ -9,3 +9,62 @@ os.environ.setdefault("DRAKE_EST_NO_PROGRESS", "1")
 import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
+
+from pathlib import Path  # noqa: E402
+
+import pytest  # noqa: E402
+
+# ------------------------------------------------------------------ optional extras and real data
+# Locally, a test whose optional extra (nbclient, nbformat, ...) or real data set (../shared/data) is missing
+# is skipped with the reason; under CI=true it FAILS instead, so nothing vanishes silently from a CI run.
+CI = os.environ.get("CI", "").strip().lower() in ("1", "true", "yes")
+
+
+def unavailable(reason: str):
+    """Skip (locally) or fail (CI=true) the running test because ``reason``."""
+    if CI:
+        pytest.fail(f"{reason} -- CI=true: missing test extras or data fail the run", pytrace=False)
+    pytest.skip(reason)
+
+
+def _require_module(name: str):
+    try:
+        return __import__(name)
+    except ImportError:
+        unavailable(f"test extra {name!r} is not installed (pip install -e .[test])")
+
+
+def _data_path(rel: str) -> Path:
+    from drake_est.datasets.paths import default_data_dir
+    return default_data_dir() / rel
+
+
+@pytest.fixture
+def require_module():
+    """``require_module("nbformat")`` -> the module; skipped locally / failed under CI=true when absent."""
+    return _require_module
+
+
+@pytest.fixture
+def require_data():
+    """``require_data("emps/DATA_EMPS.mat")`` -> the path under the data folder; skipped locally / failed
+    under CI=true when absent."""
+    def need(rel):
+        p = _data_path(rel)
+        if not p.exists():
+            unavailable(f"real data {rel} not found under {p.parents[len(Path(rel).parts) - 1]} "
+                        "(../shared/data or $DRAKE_EST_DATA)")
+        return p
+    return need
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "requires_data(*relpaths): real data files under ../shared/data the "
+                                       "test needs (skip locally, fail under CI=true when absent)")
+
+
+def pytest_runtest_setup(item):
+    for mark in item.iter_markers("requires_data"):
+        for rel in mark.args:
+            if not _data_path(rel).exists():
+                unavailable(f"real data {rel} not found (../shared/data or $DRAKE_EST_DATA)")

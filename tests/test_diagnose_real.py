@@ -19,7 +19,7 @@ from drake_est.diagnose import diagnose
 DATA = default_data_dir()
 
 
-@pytest.mark.skipif(not (DATA / "odrive_cogging" / "slow2" / "nocomp_0.npy").exists(), reason="real data absent")
+@pytest.mark.requires_data("odrive_cogging/slow2/nocomp_0.npy")  # skip locally, fail under CI=true
 def test_odrive_cogging_is_found_as_motor_position_ripple():
     t, pos, cur = np.load(DATA / "odrive_cogging" / "slow2" / "nocomp_0.npy")
     q = pos / 8192 * 2 * np.pi                       # encoder counts -> motor angle [rad]
@@ -34,7 +34,7 @@ def test_odrive_cogging_is_found_as_motor_position_ripple():
     assert d["final"]["validation"]["rmse"] < 0.6 * d["nominal"]["validation"]["rmse"]
 
 
-@pytest.mark.skipif(not (DATA / "emps" / "DATA_EMPS.mat").exists(), reason="real data absent")
+@pytest.mark.requires_data("emps/DATA_EMPS.mat")  # skip locally, fail under CI=true
 def test_emps_position_dependent_friction():
     import scipy.io
     m = scipy.io.loadmat(DATA / "emps" / "DATA_EMPS.mat", squeeze_me=True)

@@ -2,12 +2,7 @@
 import numpy as np
 import pytest
 
-from drake_est.datasets.paths import default_data_dir
 from drake_est.errors import DataError
-
-DATA = default_data_dir()
-HAVE_YUMI = (DATA / "yumi_gravitylog" / "gravitylog.mat").exists()
-HAVE_LS = (DATA / "linescanner" / "board" / "rob2board.txt").exists()
 
 
 def test_loaders_fail_clearly_without_data(tmp_path):
@@ -34,7 +29,7 @@ def test_scan_yaml_parser(tmp_path):
         parse_scan_yaml(f)
 
 
-@pytest.mark.skipif(not HAVE_YUMI, reason="yumi_gravitylog not in the shared data folder")
+@pytest.mark.requires_data("yumi_gravitylog/gravitylog.mat")
 def test_real_yumi_ft_calibration(tmp_path):
     from drake_est.datasets.yumi import load_gravitylog
     from drake_est.reproduce.calibration import real_yumi_ft
@@ -50,7 +45,7 @@ def test_real_yumi_ft_calibration(tmp_path):
     assert (tmp_path / "real_yumi_ft_validation.png").exists()
 
 
-@pytest.mark.skipif(not HAVE_LS, reason="linescanner data not in the shared data folder")
+@pytest.mark.requires_data("linescanner/board/rob2board.txt")
 def test_real_linescanner_board(tmp_path):
     from drake_est.datasets.linescanner import load_board, surface_points
 

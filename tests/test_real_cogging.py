@@ -6,10 +6,8 @@ import sys
 
 import pytest
 
-from drake_est.datasets.paths import default_data_dir
 
-HAVE = (default_data_dir() / "odrive_cogging" / "slow2" / "nocomp_0.npy").exists()
-needs_data = pytest.mark.skipif(not HAVE, reason="ODrive data (../shared/data/odrive_cogging) not present")
+needs_data = pytest.mark.requires_data("odrive_cogging/slow2/nocomp_0.npy")  # skip locally, fail under CI=true
 
 
 @needs_data

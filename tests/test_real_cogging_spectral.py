@@ -2,11 +2,9 @@
 import numpy as np
 import pytest
 
-from drake_est.datasets.paths import default_data_dir
 from drake_est.errors import DataError
 
-HAVE_DATA = (default_data_dir() / "odrive_cogging" / "slow2" / "nocomp_0.npy").exists()
-needs_data = pytest.mark.skipif(not HAVE_DATA, reason="ODrive cogging data not found (set DRAKE_EST_DATA)")
+needs_data = pytest.mark.requires_data("odrive_cogging/slow2/nocomp_0.npy")  # skip locally, fail under CI=true
 
 
 @needs_data

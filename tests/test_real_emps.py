@@ -10,8 +10,7 @@ import pytest
 from drake_est.datasets.paths import default_data_dir
 from drake_est.errors import DataError
 
-HAVE = (default_data_dir() / "emps" / "DATA_EMPS.mat").exists()
-needs_data = pytest.mark.skipif(not HAVE, reason="EMPS data (../shared/data/emps) not present")
+needs_data = pytest.mark.requires_data("emps/DATA_EMPS.mat")  # skip locally, fail under CI=true
 
 
 def test_missing_folder_is_a_data_error(tmp_path):

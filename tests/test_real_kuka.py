@@ -10,8 +10,7 @@ import pytest
 from drake_est.datasets.paths import default_data_dir
 from drake_est.errors import DataError
 
-HAVE = (default_data_dir() / "kuka_kr300" / "recorded_FF_A_08ms.mat").exists()
-needs_data = pytest.mark.skipif(not HAVE, reason="KUKA data (../shared/data/kuka_kr300) not present")
+needs_data = pytest.mark.requires_data("kuka_kr300/recorded_FF_A_08ms.mat")  # skip locally, fail under CI=true
 
 
 def test_missing_files_are_data_errors(tmp_path):
