@@ -528,9 +528,7 @@ class LinearGaussianController:
     @classmethod
     def from_result(cls, res, lower=None, upper=None, jitter=1e-9):
         T, m = res.U.shape
-        cov = np.empty((T, m, m))
-        for t in range(T):
-            cov[t] = _spd_inverse(res.Quu[t], jitter)
+        cov = spd_inverse_batch(res.Quu, jitter)
         return cls(res.X.copy(), res.U.copy(), res.K.copy(), cov,
                    None if lower is None else np.broadcast_to(lower, (T, m)).astype(float),
                    None if upper is None else np.broadcast_to(upper, (T, m)).astype(float))
@@ -563,6 +561,20 @@ class LinearGaussianController:
         return out
 
 
+def spd_inverse_batch(H, jitter=1e-9):
+    """H_t^{-1} for a stack (T, m, m) of symmetric positive definite matrices: Cholesky check, then a batched
+    linear solve against the identity (no explicit inverse); a non-PD H_t falls back to :func:`_spd_inverse`."""
+    H = np.asarray(H, float)
+    Hs = 0.5 * (H + np.swapaxes(H, 1, 2))
+    try:
+        np.linalg.cholesky(Hs)
+    except np.linalg.LinAlgError:
+        return np.stack([_spd_inverse(h, jitter) for h in Hs])
+    I = np.broadcast_to(np.eye(H.shape[1]), H.shape)
+    out = np.linalg.solve(Hs, I)
+    return 0.5 * (out + np.swapaxes(out, 1, 2))
+
+
 def _spd_inverse(H, jitter=1e-9):
     """(H)^{-1} for a symmetric positive (semi)definite H by Cholesky, adding jitter if needed."""
     m = H.shape[0]
@@ -587,13 +599,15 @@ def trajectory_kl(model, ctrl, ctrl_old, mu0, S0=None, Sf=None):
     S = np.zeros((n, n)) if S0 is None else np.asarray(S0, float).copy()
     Sf = np.zeros((n, n)) if Sf is None else np.asarray(Sf, float)
     kl = np.empty(T)
+    P_all = spd_inverse_batch(ctrl_old.cov)
+    _, ld_old_all = np.linalg.slogdet(ctrl_old.cov)
+    _, ld_new_all = np.linalg.slogdet(ctrl.cov)
     for t in range(T):
-        P_old = _spd_inverse(ctrl_old.cov[t])
+        P_old = P_all[t]
         dK = ctrl.K[t] - ctrl_old.K[t]
         # mean actions at the mean state
         dmean = ctrl.mean_action(t, mu) - ctrl_old.mean_action(t, mu)
-        _, ld_old = np.linalg.slogdet(ctrl_old.cov[t])
-        _, ld_new = np.linalg.slogdet(ctrl.cov[t])
+        ld_old, ld_new = ld_old_all[t], ld_new_all[t]
         kl[t] = 0.5 * (np.trace(P_old @ ctrl.cov[t]) + dmean @ P_old @ dmean + np.trace(dK.T @ P_old @ dK @ S)
                        - m + ld_old - ld_new)
         A, B = model.A[t], model.B[t]
@@ -611,7 +625,7 @@ class _KLCost:
         self.cost, self.old, self.eta = cost, old, float(eta)
         self.n, self.m = old.x_nom.shape[1], old.u_nom.shape[1]
         T = old.T
-        self.P = np.stack([_spd_inverse(old.cov[t]) for t in range(T)])
+        self.P = spd_inverse_batch(old.cov[:T])
 
     def _e(self, X, U):
         T = U.shape[0]

@@ -1,0 +1,132 @@
+"""Model-based reinforcement learning with trajectory optimization: thesis Algorithm 7 (Sec. 11.2).
+
+    repeat: perform rollout -> fit dynamics model -> optimize trajectory and controller -> until convergence
+
+* rollout: the Gaussian controller p(u|x) = N(u_hat + K (x - x_hat), Sigma) (11.11) on the true system (a Drake
+  system, e.g. :class:`drake_est.control.cartpole_drake.CartPoleTrueSystem`); the exploration noise has the
+  controller's covariance Sigma = Q_uu^{-1} of the last optimization (the first rollout uses ``sigma0``^2);
+* fit: ``"ltv"`` — x_{t+1} = A_t x_t + B_t u_t + c_t by the Kalman smoother (7.5) (second-order random walk of
+  the parameters, :func:`drake_est.identification.ltv.ltv_smoother` with ``order=2``; the affine term enters as a
+  constant input) with lambda by maximum likelihood (:func:`ltv_select_lambda_ml`), on the last rollout;
+  ``"lti"`` — one (A, B, c) by least squares on all rollouts so far; ``"true"`` — the exact model (optimal
+  control with the true model, the reference of Fig. 11.1);
+* optimize: control-limited iLQR under the KL constraint to the last controller
+  (:func:`drake_est.control.ilqr.ilqr_kl`, Eqs. (11.14)-(11.15)).
+
+The cost recorded per learning iteration is the cost of the noise-free controller (mean action) on the true
+system; the cost of the exploring rollout is recorded beside it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drake_est.control.ilqr import LinearGaussianController, LtvModel, ilqr, ilqr_kl
+from drake_est.errors import DataError
+from drake_est.progress import progress
+
+MODELS = ("true", "ltv", "lti")
+
+
+@dataclass
+class MbrlResult:
+    """Per learning iteration: ``costs`` (noise-free controller on the true system), ``rollout_costs`` (the
+    exploring experiment), ``kl`` reached, ``lam`` of the LTV fit; the final controller and trajectories."""
+    model: str
+    costs: list = field(default_factory=list)
+    rollout_costs: list = field(default_factory=list)
+    kl: list = field(default_factory=list)
+    lam: list = field(default_factory=list)
+    kl_bounds: list = field(default_factory=list)
+    X: np.ndarray | None = None
+    U: np.ndarray | None = None
+    X_rollout: np.ndarray | None = None
+    U_rollout: np.ndarray | None = None
+    controller: LinearGaussianController | None = None
+    queries: int = 0
+
+
+def fit_lti(Xs, Us):
+    """x_{t+1} = A x_t + B u_t + c by least squares on all (X, U) pairs; returns (A, B, c)."""
+    Phi = np.vstack([np.hstack([X[:-1], U, np.ones((len(U), 1))]) for X, U in zip(Xs, Us)])
+    Y = np.vstack([X[1:] for X in Xs])
+    n, m = Xs[0].shape[1], Us[0].shape[1]
+    W, *_ = np.linalg.lstsq(Phi, Y, rcond=None)
+    W = W.T
+    return W[:, :n], W[:, n:n + m], W[:, -1]
+
+
+def fit_ltv(X, U, lams=None):
+    """LTV model along one trajectory by (7.5) (order-2 random walk), lambda by maximum likelihood.
+
+    Returns (LtvModel, lambda)."""
+    from drake_est.identification.ltv import ltv_select_lambda_ml, ltv_smoother
+    Ub = np.hstack([U, np.ones((len(U), 1))])
+    lams = np.logspace(-2, 4, 7) if lams is None else lams
+    lam, _, _ = ltv_select_lambda_ml(X, Ub, lams=lams, order=2, refine=False)
+    res = ltv_smoother(X, Ub, lam, order=2)
+    return LtvModel.from_result(res, bias_input=True), lam
+
+
+def mbrl(true_system, true_model, cost, x0, T, model="ltv", iterations=20, kl_step=400.0, sigma0=1.0,
+         lower=-10.0, upper=10.0, seed=0, show_progress=False, kl_increase=2.0, kl_decrease=0.5, kl_max=1e5):
+    """Algorithm 7 on ``true_system`` (``.rollout(x0, T, policy)``), cost ``cost``, horizon ``T``.
+
+    The KL bound starts at ``kl_step`` and adapts (Levine and Abbeel 2014): multiplied by ``kl_increase``
+    (up to ``kl_max``) after an iteration that lowered the noise-free cost on the true system, by ``kl_decrease``
+    after one that raised it.
+
+    ``true_model``: the exact :class:`drake_est.control.ilqr.Model` of the system (used only when
+    ``model == "true"``).  Returns :class:`MbrlResult`."""
+    if model not in MODELS:
+        raise DataError(f"model must be one of {MODELS}, got {model!r}")
+    if iterations < 1:
+        raise DataError(f"iterations must be >= 1, got {iterations}")
+    rng = np.random.default_rng(seed)
+    n, m = len(x0), 1 if np.ndim(lower) == 0 else len(lower)
+    lb = np.full((T, m), lower, float)
+    ub = np.full((T, m), upper, float)
+    out = MbrlResult(model)
+    if model == "true":
+        r = ilqr(true_model, cost, x0, np.zeros((T, m)), lb, ub)
+        X, U = true_system.rollout(x0, T, lambda t, x: np.clip(r.U[t] + r.K[t] @ (x - r.X[t]), lb[t], ub[t]))
+        J = cost.value(X, U)
+        out.costs = [J] * iterations
+        out.rollout_costs = [J] * iterations
+        out.X, out.U, out.X_rollout, out.U_rollout = X, U, X, U
+        out.controller = r.controller(lb, ub)
+        out.queries = r.iterations
+        return out
+    ctrl = LinearGaussianController(np.tile(x0, (T + 1, 1)), np.zeros((T, m)), np.zeros((T, m, n)),
+                                    np.tile(sigma0 ** 2 * np.eye(m), (T, 1, 1)), lb, ub)
+    Xs, Us = [], []
+    eps = float(kl_step)
+    out.kl_bounds = []
+    it = range(iterations)
+    for _ in (progress(it, desc=f"mbrl {model} seed {seed}") if show_progress else it):
+        noise = ctrl.noise(rng)
+        Xr, Ur = true_system.rollout(x0, T, lambda t, x: ctrl.action(t, x, noise[t]))
+        Xd, Ud = true_system.rollout(x0, T, lambda t, x: ctrl.action(t, x, None))
+        out.rollout_costs.append(cost.value(Xr, Ur))
+        out.costs.append(cost.value(Xd, Ud))
+        if len(out.costs) > 1:
+            eps = min(eps * kl_increase, kl_max) if out.costs[-1] < out.costs[-2] else eps * kl_decrease
+        out.kl_bounds.append(eps)
+        Xs.append(Xr)
+        Us.append(Ur)
+        if model == "ltv":
+            mdl, lam = fit_ltv(Xr, Ur)
+            out.lam.append(lam)
+        else:
+            A, B, c = fit_lti(Xs, Us)
+            mdl = LtvModel(np.tile(A, (T, 1, 1)), np.tile(B, (T, 1, 1)), np.tile(c, (T, 1)))
+        # the old trajectory distribution is the executed controller, nominal along the executed rollout
+        old = LinearGaussianController(Xd, ctrl.u_nom, ctrl.K, ctrl.cov, lb, ub)
+        kr = ilqr_kl(mdl, cost, x0, old, eps, lb, ub, max_iter=50)
+        out.kl.append(kr.kl)
+        ctrl = kr.controller
+        out.X, out.U, out.X_rollout, out.U_rollout = Xd, Ud, Xr, Ur
+    out.controller = ctrl
+    out.queries = 2 * iterations
+    return out
