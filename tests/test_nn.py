@@ -225,3 +225,23 @@ def test_neural_dynamics_system_matches_model_simulation():
     np.testing.assert_allclose(Bt, J[:, :, 3:])
     with pytest.raises(DataError, match="time_step"):
         NeuralDynamics(model, 0.0)
+
+
+def test_neural_dynamics_autodiff_linearize_equals_model_jacobian():
+    """The AutoDiffXd version (TemplateSystem) lets Drake's Linearize differentiate the learned model."""
+    from pydrake.systems.primitives import Linearize
+    from drake_est.systems.dynamics import NeuralDynamics, contract_cases
+    A, B, xs, us = _linear_data(7, T=30)
+    model = NeuralDynamicsModel(hidden=(5, 4), form="nominal", A0=0.5 * np.eye(3), B0=np.ones((3, 2)),
+                                epochs=3, progress_bar=False).fit(xs, us)
+    sys = NeuralDynamics(model, time_step=0.05)
+    ctx = sys.CreateDefaultContext()
+    x, u = xs[0][4], us[0][4]
+    ctx.SetDiscreteState(x)
+    sys.get_control_input_port().FixValue(ctx, u)
+    lin = Linearize(sys, ctx, equilibrium_check_tolerance=1e12)
+    J = model.jacobian(x, u)
+    np.testing.assert_allclose(lin.A(), J[:, :3], atol=1e-12)
+    np.testing.assert_allclose(lin.B(), J[:, 3:], atol=1e-12)
+    case = contract_cases()[0]
+    assert "[model units]" in case.make().__doc__

@@ -7,71 +7,100 @@ gives (A_t, B_t) of the model along a trajectory, for iLQR or as an LTV prior (S
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.framework import LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
 
 from drake_est.errors import DataError
 from drake_est.identification.nn import NeuralDynamicsModel
 
 
-class NeuralDynamics(LeafSystem):
-    """Discrete-time x+ = model(x, u) of a fitted :class:`NeuralDynamicsModel`.
+@TemplateSystem.define("NeuralDynamics_")
+def NeuralDynamics_(T):
+    class Impl(LeafSystem_[T]):
+        """Discrete-time x+ = model(x, u) of a fitted :class:`NeuralDynamicsModel`.
 
-    Ports
-    -----
-    * input ``control`` (m,) [model units]   (absent when the model has no inputs)
-    * output ``state`` (n,) [model units]: the discrete state x_k, held between updates
+        Ports
+        -----
+        * input ``control`` (m,) [model units]   (absent when the model has no inputs)
+        * output ``state`` (n,) [model units]: the discrete state x_k, held between updates
 
-    Parameters
-    ----------
-    model : a fitted NeuralDynamicsModel (its weights are copied: later changes to ``model`` do not
-        affect the system).
-    time_step : update period [s] (the sample time of the data the model was trained on).
-    initial_state : x_0 (default zeros).
-    """
+        Parameters
+        ----------
+        model : a fitted NeuralDynamicsModel (its weights are copied: later changes to ``model`` do not
+            affect the system).
+        time_step : update period [s] (the sample time of the data the model was trained on).
+        initial_state : x_0 (default zeros).
 
-    def __init__(self, model: NeuralDynamicsModel, time_step: float, initial_state=None):
-        super().__init__()
-        if not isinstance(model, NeuralDynamicsModel) or model.params_ is None:
-            raise DataError("model: a fitted NeuralDynamicsModel is required")
-        if not (np.isfinite(time_step) and time_step > 0):
-            raise DataError(f"time_step must be > 0 [s], got {time_step}")
-        self._model = NeuralDynamicsModel.from_dict(model.to_dict())
-        n, m = self._model.n_states, self._model.n_inputs
-        x0 = np.zeros(n) if initial_state is None else np.asarray(initial_state, float).reshape(-1)
-        if x0.shape != (n,) or not np.all(np.isfinite(x0)):
-            raise DataError(f"initial_state must be {n} finite numbers")
-        self._n, self._m = n, m
-        self._time_step = float(time_step)
-        self._x = self.DeclareDiscreteState(BasicVector(x0))
-        self._control = self.DeclareVectorInputPort("control", m) if m else None
-        self._state = self.DeclareStateOutputPort("state", self._x)
-        self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
+        Scalar types: float and AutoDiffXd (``ToAutoDiffXd()``), so Drake's ``Linearize`` /
+        ``FirstOrderTaylorApproximation`` and AutoDiff-based optimizers can differentiate it; the float
+        system calls ``model.predict``, the AutoDiffXd one evaluates the same network on AutoDiffXd arrays.
+        """
 
-    def _update(self, context, discrete_state):
-        x = context.get_discrete_state(self._x).get_value()
-        u = self._control.Eval(context) if self._control is not None else None
-        discrete_state.get_mutable_vector(self._x).SetFromVector(self._model.predict(x, u))
+        def _construct(self, model, time_step, initial_state=None, converter=None):
+            LeafSystem_[T].__init__(self, converter)
+            if not isinstance(model, NeuralDynamicsModel) or model.params_ is None:
+                raise DataError("model: a fitted NeuralDynamicsModel is required")
+            if not (np.isfinite(time_step) and time_step > 0):
+                raise DataError(f"time_step must be > 0 [s], got {time_step}")
+            self._model = NeuralDynamicsModel.from_dict(model.to_dict())
+            n, m = self._model.n_states, self._model.n_inputs
+            x0 = np.zeros(n) if initial_state is None else np.asarray(initial_state, float).reshape(-1)
+            if x0.shape != (n,) or not np.all(np.isfinite(x0)):
+                raise DataError(f"initial_state must be {n} finite numbers")
+            self._n, self._m = n, m
+            self._x0 = x0
+            self._time_step = float(time_step)
+            self._x = self.DeclareDiscreteState(x0)
+            self._control = self.DeclareVectorInputPort("control", m) if m else None
+            self._state = self.DeclareStateOutputPort("state", self._x)
+            self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
 
-    def model(self) -> NeuralDynamicsModel:
-        return self._model
+        def _construct_copy(self, other, converter=None):
+            Impl._construct(self, other._model, other._time_step, other._x0, converter=converter)
 
-    def time_step(self) -> float:
-        return self._time_step
+        def _update(self, context, discrete_state):
+            x = context.get_discrete_state(self._x).CopyToVector()
+            u = self._control.Eval(context) if self._control is not None else np.zeros(0)
+            if T == float:
+                xn = self._model.predict(x, u if self._m else None)
+            else:
+                xn = _predict_generic(self._model, np.concatenate([x, u]))
+            discrete_state.get_mutable_vector(self._x).SetFromVector(xn)
 
-    def get_control_input_port(self):
-        if self._control is None:
-            raise DataError("this NeuralDynamics model has no inputs")
-        return self._control
+        def model(self) -> NeuralDynamicsModel:
+            return self._model
 
-    def get_state_output_port(self):
-        return self._state
+        def time_step(self) -> float:
+            return self._time_step
+
+        def get_control_input_port(self):
+            if self._control is None:
+                raise DataError("this NeuralDynamics model has no inputs")
+            return self._control
+
+        def get_state_output_port(self):
+            return self._state
+
+    return Impl
+
+
+def _predict_generic(model, z):
+    """x+ = net(z) + N z for any scalar type (object arrays of AutoDiffXd included)."""
+    l = z
+    for W, b in model.params_[:-1]:
+        l = np.tanh(W @ l + b)
+    W, b = model.params_[-1]
+    return W @ l + b + model.nominal_matrix @ z
+
+
+NeuralDynamics = NeuralDynamics_[None]
 
 
 def linearize_trajectory(system_or_model, x, u=None):
     """(A_t, B_t) of a NeuralDynamics system or NeuralDynamicsModel along a state/input trajectory:
     arrays (T, n, n), (T, n, m) — the Jacobian [A B] (8.6) at each (x_t, u_t), usable by iLQR and, as
     ``np.concatenate([A, B], 2).transpose(0, 2, 1)``, as the LTV prior mean (Sec. 7.5)."""
-    model = system_or_model.model() if isinstance(system_or_model, NeuralDynamics) else system_or_model
+    model = system_or_model.model() if hasattr(system_or_model, "model") else system_or_model
     X = np.atleast_2d(np.asarray(x, float))
     U = None if u is None else np.asarray(u, float).reshape(X.shape[0], -1)
     return model.linearize(X, U)
