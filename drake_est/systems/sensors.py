@@ -42,17 +42,20 @@ class _FlangeSensor(LeafSystem):
         self._X_FS = as_matrix(X_FS)
         nx = plant.num_positions() + plant.num_velocities()
         self._nq = plant.num_positions()
-        self.DeclareVectorInputPort("robot_state", BasicVector(nx))
+        self._robot_state = self.DeclareVectorInputPort("robot_state", BasicVector(nx))
+
+    def get_robot_state_input_port(self):
+        return self._robot_state
 
     def sensor_pose(self, context) -> np.ndarray:
         """4x4 pose of the sensor in the world, T_W^F T_F^S."""
-        x = self.get_input_port(0).Eval(context)
+        x = self._robot_state.Eval(context)
         self._plant.SetPositions(self._plant_context, x[: self._nq])
         X_WF = self._flange.CalcPoseInWorld(self._plant_context).GetAsMatrix4()
         return X_WF @ self._X_FS
 
     def flange_pose(self, context) -> RigidTransform:
-        x = self.get_input_port(0).Eval(context)
+        x = self._robot_state.Eval(context)
         self._plant.SetPositions(self._plant_context, x[: self._nq])
         return self._flange.CalcPoseInWorld(self._plant_context)
 
@@ -80,7 +83,10 @@ class ForceTorqueSensor(_FlangeSensor):
         self.noise_force, self.noise_torque = float(noise_force), float(noise_torque)
         self.gravity = np.asarray(gravity, float)
         self.sample_period, self.seed = float(sample_period), int(seed)
-        self.DeclareVectorOutputPort("wrench", BasicVector(6), self._calc_wrench)
+        self._wrench = self.DeclareVectorOutputPort("wrench", BasicVector(6), self._calc_wrench)
+
+    def get_wrench_output_port(self):
+        return self._wrench
 
     @property
     def R_S_TF(self) -> np.ndarray:
@@ -102,7 +108,7 @@ class LaserStripeScanner(_FlangeSensor):
 
     Ports: input ``robot_state`` [q rad; v rad/s]; outputs ``points`` (3 n_rays) [m], the hit points
     in sensor coordinates (x0, y0, z0, x1, ...; NaN where no surface is within ``max_range``),
-    ``plane_labels`` (n_rays) index of the surface hit (-1: none), and ``seam_point`` (3) [m], the
+    ``plane_labels`` (n_rays) [index] of the surface hit (-1: none), and ``seam_point`` (3) [m], the
     intersection of the laser plane with the seam line in sensor coordinates (NaN when outside the
     field of view or when no seam is given).
 
@@ -128,9 +134,18 @@ class LaserStripeScanner(_FlangeSensor):
         self.max_range, self.noise = float(max_range), float(noise)
         self.sample_period, self.seed = float(sample_period), int(seed)
         self.n_rays = int(n_rays)
-        self.DeclareVectorOutputPort("points", BasicVector(3 * n_rays), self._calc_points)
-        self.DeclareVectorOutputPort("plane_labels", BasicVector(n_rays), self._calc_labels)
-        self.DeclareVectorOutputPort("seam_point", BasicVector(3), self._calc_seam)
+        self._points = self.DeclareVectorOutputPort("points", BasicVector(3 * n_rays), self._calc_points)
+        self._labels = self.DeclareVectorOutputPort("plane_labels", BasicVector(n_rays), self._calc_labels)
+        self._seam_point = self.DeclareVectorOutputPort("seam_point", BasicVector(3), self._calc_seam)
+
+    def get_points_output_port(self):
+        return self._points
+
+    def get_plane_labels_output_port(self):
+        return self._labels
+
+    def get_seam_point_output_port(self):
+        return self._seam_point
 
     def _scan(self, context):
         T = self.sensor_pose(context)
@@ -183,8 +198,8 @@ def collect_laser_scans(diagram_or_system, scanner: LaserStripeScanner, plant, q
     for i, q in enumerate(q_list):
         plant.SetPositions(plant_ctx, np.asarray(q, float))
         ctx.SetTime(i * scanner.sample_period)
-        P = scanner.GetOutputPort("points").Eval(sctx).reshape(-1, 3)
-        L = scanner.GetOutputPort("plane_labels").Eval(sctx).astype(int)
+        P = scanner.get_points_output_port().Eval(sctx).reshape(-1, 3)
+        L = scanner.get_plane_labels_output_port().Eval(sctx).astype(int)
         poses.append(scanner.flange_pose(sctx).GetAsMatrix4())
         ok = L >= 0
         pts.append(P[ok])
@@ -202,6 +217,46 @@ def collect_wrenches(diagram_or_system, sensor: ForceTorqueSensor, plant, q_list
     for i, q in enumerate(q_list):
         plant.SetPositions(plant_ctx, np.asarray(q, float))
         ctx.SetTime(i * sensor.sample_period)
-        W.append(sensor.GetOutputPort("wrench").Eval(sctx).copy())
+        W.append(sensor.get_wrench_output_port().Eval(sctx).copy())
         poses.append(sensor.flange_pose(sctx).GetAsMatrix4())
     return np.array(poses), np.array(W)
+
+
+def contract_cases():
+    """One F/T sensor and one laser scanner on the IRB 140 at a fixed configuration, noise-free; the expected
+    outputs come from the plain functions (:func:`drake_est.calibration.ft.simulate_ft`,
+    :func:`drake_est.calibration.simulate.scan_planes`) at the flange pose of :class:`drake_est.robots.RobotModel`."""
+    from pydrake.math import RollPitchYaw
+    from pydrake.systems.framework import DiagramBuilder
+
+    from drake_est.calibration.ft import simulate_ft
+    from drake_est.robots import RobotModel, add_irb140
+    from drake_est.systems.contract import ContractCase
+
+    _, plant, _, _ = add_irb140(DiagramBuilder())
+    q = np.array([0.3, -0.2, 0.4, 0.5, 0.7, -0.3])
+    x = np.r_[q, np.zeros(6)]
+    X_FS = RigidTransform(RollPitchYaw(0.1, -0.2, 0.3), [0.01, 0.02, 0.05]).GetAsMatrix4()
+    T_WF = RobotModel.irb140().forward_kinematics(q).GetAsMatrix4()
+    T_WS = T_WF @ X_FS
+    planes = np.array([[0.0, 0.0, 1.0, 0.1], [1.0, 0.0, 0.0, 0.9]])
+    ft = dict(mass=1.3, com=(0.01, -0.02, 0.06), force_bias=(0.5, -0.2, 0.1), torque_bias=(0.01, 0.02, -0.03))
+
+    def ft_expected(s):
+        return {"wrench": simulate_ft(T_WF[None], s.R_S_TF, ft["mass"], ft["com"], ft["force_bias"],
+                                      ft["torque_bias"], gravity=s.gravity)[0]}
+
+    def laser_expected(s):
+        pts, lab = scan_planes(T_WS, s.planes, s.rays, s.max_range)
+        return {"points": pts.ravel(), "plane_labels": lab.astype(float)}
+
+    return [
+        ContractCase(make=lambda: ForceTorqueSensor(plant, X_FS, **ft), inputs={"robot_state": x},
+                     expected=ft_expected, atol=1e-9, label="IRB 140, payload 1.3 kg, noise-free"),
+        ContractCase(make=lambda: LaserStripeScanner(plant, X_FS, planes, n_rays=16, max_range=3.0),
+                     inputs={"robot_state": x}, expected=laser_expected, atol=1e-9,
+                     label="IRB 140, two planes, 16 rays, noise-free"),
+        ContractCase(make=lambda: LaserStripeScanner(plant, X_FS, planes, n_rays=8, max_range=3.0, noise=1e-3,
+                                                     seed=3),
+                     inputs={"robot_state": x}, label="with noise: names and hidden state only"),
+    ]
