@@ -58,8 +58,13 @@ class IlqrController(LeafSystem):
     ``cost``: e.g. :class:`QuadraticCost`; ``horizon`` steps of ``dt`` [s]."""
 
     def __init__(self, model, cost, horizon, dt, lower=None, upper=None, replan_period=None, U_init=None,
-                 options: IlqrOptions | None = None):
+                 options: IlqrOptions | None = None, plan=None):
         super().__init__()
+        self._fixed_plan = None
+        if plan is not None:
+            # a given plan (X (T+1,n), U (T,m), K (T,m,n)), e.g. a learned controller: no solve at initialization
+            X, U, K = (np.asarray(a, float) for a in plan)
+            self._fixed_plan = (X, U, K)
         if int(horizon) < 1:
             raise DataError(f"horizon must be >= 1, got {horizon}")
         if not (dt > 0):
@@ -107,7 +112,22 @@ class IlqrController(LeafSystem):
         return EventStatus.Succeeded()
 
     def _initial_plan(self, context, discrete_state):
+        if self._fixed_plan is not None:
+            X, U, K = self._fixed_plan
+            v = np.concatenate([[context.get_time()], U.ravel(), X.ravel(), K.ravel()])
+            discrete_state.get_mutable_vector(self._plan).SetFromVector(v)
+            return EventStatus.Succeeded()
         return self._plan_from(context, discrete_state, self.U_init)
+
+    @classmethod
+    def from_plan(cls, X, U, K, dt, lower=None, upper=None):
+        """A controller that executes a given plan u = U(t) + K(t) (x - X(t)) (no model, no replanning)."""
+        U = np.asarray(U, float)
+        X = np.asarray(X, float)
+
+        class _Shape:
+            n, m = X.shape[1], U.shape[1]
+        return cls(_Shape(), None, U.shape[0], dt, lower, upper, plan=(X, U, K))
 
     def _replan(self, context, discrete_state):
         t0, U, _, _ = unpack_plan(context.get_discrete_state(self._plan).value(), self.T, self.n, self.m)
