@@ -32,7 +32,7 @@ def test_scan_yaml_parser(tmp_path):
 @pytest.mark.requires_data("yumi_gravitylog/gravitylog.mat")
 def test_real_yumi_ft_calibration(tmp_path):
     from drake_est.datasets.yumi import load_gravitylog
-    from drake_est.reproduce.calibration import real_yumi_ft
+    from drake_est.cases.calibration import real_yumi_ft
 
     log = load_gravitylog()
     assert log.q.shape == (13802, 7) and log.wrench.shape == (13802, 6)
@@ -54,7 +54,7 @@ def test_real_linescanner_board(tmp_path):
     assert np.all(np.abs(b.profiles[0][:, 1]) == 0)  # (x, 0, z) profiles
     m, rms = surface_points(b.profiles[0])
     assert 0.5 < m.mean() < 0.9 and rms < 0.1e-3  # grooves removed, flat part at the sensor noise level
-    from drake_est.reproduce.calibration import real_linescanner
+    from drake_est.cases.calibration import real_linescanner
 
     r = real_linescanner(tmp_path, quick=True)
     assert r["plane_rms_after_mm"] < r["plane_rms_before_mm"]
