@@ -6,7 +6,7 @@ import time
 from pathlib import Path
 
 
-def run_fleet_demo(out_dir, robots: int = 8, days: int = 12, seed: int = 0, workers: int | None = None,
+def run_fleet_demo(out_dir, robots: int = 6, days: int = 10, seed: int = 0, workers: int | None = None,
                    echo=print) -> dict:
     """Synthesize a small fleet, diagnose it on a local Dask cluster, write the report and compare
     the warnings with the planted truth.  Returns the truth check."""
