@@ -222,3 +222,49 @@ def test_logs_from_an_independent_generator(effect, duration, rate):
     rep = diagnose(log, robot="generic", simulate=False)
     assert [f["effect"] for f in rep.findings] == truth["effects"]
     assert rep.to_dict()["final"]["per_joint"]["1"]["rmse"] <= 1.2 * 0.4
+
+
+@pytest.mark.parametrize("name", ["motor_position_ripple", "gear_coupling", "abrupt_change",
+                                  "energy_dependent_friction"])
+def test_diagnosed_model_is_the_friction_model_and_round_trips_json(name, tmp_path):
+    """issue #18: friction_system(report) is the same FrictionModel class as fit-friction's; it saves
+    to params.json and loads back with identical torques; it equals the simulation's FrictionLaw
+    (given the same energy) on random states, at times before and after any change."""
+    from drake_est.diagnose import friction_params
+    from drake_est.diagnose.simulate import FrictionLaw
+    from drake_est.systems.friction import FrictionModel
+    rep, truth = report(name)
+    res = rep.result
+    assert any(s.ext.effect == name for s in res.steps), "the effect must be found for this check to bite"
+    fm = friction_system(rep)
+    assert type(fm) is FrictionModel
+    path = tmp_path / "params.json"
+    path.write_text(json.dumps(friction_params(rep)))
+    fm2 = FrictionModel.from_json(path)
+    law = FrictionLaw(res, res.final_model, res.final_fit)
+    prep = res.prep
+    rng = np.random.default_rng(0)
+    n = prep.robot.n
+    t_end = float(prep.log.t[-1])
+    for _ in range(20):
+        q = rng.uniform(-1.5, 1.5, n)
+        v = rng.uniform(-1.0, 1.0, n)
+        t = float(rng.uniform(0, t_end))
+        qm = np.array([q[prep.robot_cols[j]] for j in prep.log.joints])
+        vm = np.array([v[prep.robot_cols[j]] for j in prep.log.joints])
+        E_log = law.energy_at(t)
+        E = np.zeros(n)
+        for c, j in enumerate(prep.log.joints):
+            E[prep.robot_cols[j]] = E_log[c]
+        F = fm.friction(q, v, E, t)
+        np.testing.assert_array_equal(fm2.friction(q, v, E, t), F)
+        F_law = law.friction(t, qm, vm)
+        np.testing.assert_allclose([F[prep.robot_cols[j]] for j in prep.log.joints], F_law, rtol=1e-12, atol=1e-12)
+    # the LeafSystem output is the same function
+    ctx = fm.CreateDefaultContext()
+    fm.get_joint_positions_input_port().FixValue(ctx, q)
+    fm.get_joint_velocities_input_port().FixValue(ctx, v)
+    ctx.SetTime(t)
+    E0 = np.zeros(n)
+    np.testing.assert_allclose(fm.get_friction_torques_output_port().Eval(ctx), fm.friction(q, v, E0, t), rtol=1e-14)
+    assert json.loads(path.read_text())["format"] == "drake_est.friction_model/2"

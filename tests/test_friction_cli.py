@@ -35,7 +35,8 @@ def test_fit_friction_cli_writes_params_and_plots(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "validation" in text and "RMSE" in text and "dropped" in text
     doc = json.loads((out / "params.json").read_text())
-    assert doc["model"]["format"] == "drake_est.friction/1"
+    assert doc["model"]["format"] == "drake_est.friction/2"
+    assert doc["model"]["joint"] == 1 and doc["model"]["index"] == 0     # 1-based joint number in files
     assert doc["validation"]["rmse"] < 0.1
     for name in ("torque_vs_position_velocity.png", "residual_histogram.png", "fit_over_time.png"):
         assert (out / name).stat().st_size > 1000
@@ -67,3 +68,30 @@ def test_reproduce_friction_energy_quick(tmp_path):
     assert a["median_npe"] < 0.05
     assert abs(a["rmse_over_noise"] - 1.0) < 0.10
     assert (tmp_path / "fig9_5_errors.png").exists()
+
+
+def test_params_json_joint_numbers_are_one_based(tmp_path):
+    """issue #18: a model of joint 2 fitted from a log holding only joints [2, 3] (data column 0) lands
+    on joint 2 of the plant, not on joint 1; old 0-based files load with a DeprecationWarning."""
+    import warnings
+
+    from drake_est.identification.friction import JointFriction
+    from drake_est.systems.friction import FrictionModel
+    m = JointFriction.coulomb_viscous(3.0, 1.0, joint=0, joint_number=2)   # data column 0 holds joint 2
+    d = {"model": m.to_dict()}
+    fm = FrictionModel.from_params(d, n_joints=3)
+    F = fm.friction([0, 0, 0], [0.0, 0.5, 0.0])
+    assert F[0] == 0.0 and F[1] == pytest.approx(3.0 + 0.5) and F[2] == 0.0
+    p = fm.write_json(tmp_path / "params.json")
+    doc = json.loads(p.read_text())
+    assert list(doc["models"]) == ["2"] and doc["models"]["2"]["joint"] == 2
+    np.testing.assert_array_equal(FrictionModel.from_json(p).friction([0, 0, 0], [0.0, 0.5, 0.0]), F)
+    legacy = {"models": {"1": dict(m.to_dict(), format="drake_est.friction/1", joint=1)}}
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        fl = FrictionModel.from_params(legacy, n_joints=3)
+    assert any("0-based" in str(x.message) for x in w)
+    np.testing.assert_array_equal(fl.friction([0, 0, 0], [0.0, 0.5, 0.0]), F)
+    from drake_est.errors import DataError
+    with pytest.raises(DataError, match="1-based"):
+        FrictionModel({0: m}, n_joints=3)

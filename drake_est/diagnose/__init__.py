@@ -24,7 +24,7 @@ from drake_est.diagnose.core import ALPHA, MIN_GAIN, run_diagnosis
 from drake_est.diagnose.detectors import VOCABULARY
 from drake_est.diagnose.report import DiagnosisReport
 
-__all__ = ["diagnose", "DiagnosisReport", "VOCABULARY", "run_demo", "friction_system"]
+__all__ = ["diagnose", "DiagnosisReport", "VOCABULARY", "run_demo", "friction_system", "friction_params"]
 
 
 def diagnose(log, robot: str | None = "generic", joints=None, seed: int = 0, simulate: bool = True,
@@ -56,17 +56,30 @@ def diagnose(log, robot: str | None = "generic", joints=None, seed: int = 0, sim
     return rep
 
 
-def friction_system(report: DiagnosisReport):
-    """The final (extended) friction model as a Drake ``LeafSystem`` (ports ``joint_positions``,
-    ``joint_velocities`` -> ``friction_torques``) for the robot's coordinates."""
-    from drake_est.diagnose.simulate import DiagnosedFriction, FrictionLaw
+def friction_system(report: DiagnosisReport, sign_eps: float = 0.0):
+    """The final (extended) friction model as the same
+    :class:`~drake_est.systems.friction.FrictionModel` ``LeafSystem`` that ``fit-friction`` models use
+    (ports ``joint_positions`` [rad], ``joint_velocities`` [rad/s] -> ``friction_torques`` [N m]), in
+    the robot's coordinates (generic axes: the log's joints in order).  Its models are
+    :func:`~drake_est.diagnose.simulate.diagnosed_friction_models`; save them with
+    :func:`friction_params` and load them back with ``FrictionModel.from_json``.  A diagnosed energy
+    effect keeps its unit-gain energy as discrete state in the Context (starting at 0)."""
+    from drake_est.diagnose.simulate import diagnosed_friction_models
+    from drake_est.systems.friction import FrictionModel
     res = report.result
-    law = FrictionLaw(res, res.final_model, res.final_fit)
     prep = res.prep
     if prep.robot is not None:
-        return DiagnosedFriction(law, prep.robot.n, prep.robot_cols)
-    cols = {j: c for c, j in enumerate(prep.log.joints)}
-    return DiagnosedFriction(law, len(prep.log.joints), cols)
+        cols, n = dict(prep.robot_cols), prep.robot.n
+    else:
+        cols, n = {j: c for c, j in enumerate(prep.log.joints)}, len(prep.log.joints)
+    models = diagnosed_friction_models(res, res.final_model, res.final_fit, cols)
+    return FrictionModel([models.get(index) for index in range(n)], n_joints=n, sign_eps=sign_eps)
+
+
+def friction_params(report: DiagnosisReport) -> dict:
+    """The diagnosed friction model as a ``params.json`` dict (the ``fit-friction`` format:
+    ``{"models": {"<1-based joint>": model}, "n_joints": n}``), loadable by ``FrictionModel.from_json``."""
+    return friction_system(report).to_params()
 
 
 def run_demo(out_dir, seed: int = 0, duration: float = 120.0, effect: str = "motor_position_ripple") -> DiagnosisReport:

@@ -25,9 +25,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.signal
 
 from drake_est.effects import EFFECTS, EXTRA_EFFECTS  # noqa: F401
+# the column evaluators are friction terms now (one friction model); re-exported under their old names
+from drake_est.identification.friction.extensions import columns_at, gaussian_features, unit_energy  # noqa: F401
 
 RIPPLE_BASIS = 8
 BFE_SIZES = (8, 16, 32, 64)
@@ -70,43 +71,6 @@ class Extension:
 
 def _sgn(v):
     return np.sign(v)
-
-
-def gaussian_features(q, centers, width):
-    return np.exp(-0.5 * ((np.asarray(q, float)[:, None] - centers[None, :]) / width) ** 2)
-
-
-def unit_energy(t, W, tau_e):
-    """E with unit static gain: dE/dt = (W - E) / tau_e, zero-order hold, E(0) = 0 (9.23)."""
-    h = float(np.median(np.diff(t)))
-    a = float(np.exp(-h / tau_e))
-    return scipy.signal.lfilter([0.0, 1.0 - a], [1.0, -a], W)
-
-
-def columns_at(spec, q, v, t, others=None, E_unit=None, sign=None):
-    """Columns of an extension at arbitrary samples (arrays (N,) of the joint; ``others``:
-    {joint: velocity (N,)} for gear coupling; ``E_unit``: the unit-gain energy state; ``sign``: the
-    sign function (a smoothed one for integrators))."""
-    kind = spec["effect"]
-    _sgn = sign or np.sign
-    q, v, t = (np.atleast_1d(np.asarray(a, float)) for a in (q, v, t))
-    s = _sgn(v)
-    if kind == "asymmetric_coulomb":
-        return (v < 0).astype(float)[:, None]
-    if kind == "position_dependent_friction":
-        return s[:, None] * gaussian_features(q, np.asarray(spec["centers"]), spec["width"])
-    if kind == "position_dependent_load":
-        return gaussian_features(q, np.asarray(spec["centers"]), spec["width"])
-    if kind == "abrupt_change":
-        H = (t >= spec["t_change"]).astype(float)
-        return np.column_stack([v * H, s * H])
-    if kind == "gear_coupling":
-        return np.column_stack([c for i in spec["coupled_joints"] for c in (others[i], _sgn(others[i]))])
-    if kind == "energy_dependent_friction":
-        return (s * np.asarray(E_unit, float))[:, None]
-    if kind == "motor_position_ripple":
-        return spec["_pc"].regressors(q, v)
-    raise ValueError(f"no column evaluator for {kind}")
 
 
 # ----------------------------------------------------------------------------- detectors

@@ -20,16 +20,58 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from drake_est.diagnose.detectors import columns_at, unit_energy
 from drake_est.diagnose.nominal import nominal_names
+from drake_est.errors import DrakeEstError
+from drake_est.identification.friction import (Coulomb, EnergyDynamics, ExtensionTerm, JointFriction, Viscous,
+                                               unit_energy)
 
 
 SIM_STEP_S = 0.002
 
 
-class FrictionLaw:
-    """Friction torques of the excited joints for a (subset of the) diagnosed model.
+def diagnosed_friction_models(result, model, fit, cols: dict, sign_eps: float = 0.0) -> dict:
+    """The diagnosed friction of every excited joint as a :class:`JointFriction` (one friction model):
+    nominal :class:`Viscous` + :class:`Coulomb` (9.2) plus one :class:`ExtensionTerm` per accepted
+    per-joint extension, with the fitted coefficients.  ``cols``: {1-based log joint: 0-based index
+    of that joint in the coordinates the models will read}.  Returns {index: JointFriction}.
 
+    Each model fades its extensions by |tanh(qd / v_min)| towards standstill (they were identified on
+    moving samples, (9.9)), evaluates the ripple amplitude at speeds clipped to the identified range
+    and clips |F| at 1.5 x the largest friction torque seen.  A diagnosed energy effect reads the
+    unit-gain energy E = 1/(tau_e s + 1) |F qd| (9.23) from a unit-gain :class:`EnergyDynamics`
+    (``energy_additive=False``: the fitted coefficient multiplies sign(qd) E)."""
+    prep = result.prep
+    names = nominal_names(prep.robot_kind)
+    if names != ["kv", "kc"]:
+        raise DrakeEstError(f"unexpected nominal columns {names}")
+    h = float(np.median(np.diff(prep.log.t))) if prep.log.t.size > 1 else 0.01
+    out = {}
+    for j, jd in prep.joints.items():
+        v_used = jd.v[jd.rows]
+        v_min = float(jd.counts["thresholds"]["v_min"])
+        v_range = (float(v_used.min()), float(v_used.max()))
+        terms, energy = [Viscous(), Coulomb()], None
+        for e in model.own(j):
+            coupled = [cols[i] for i in e.spec.get("coupled_joints", [])] or None
+            terms.append(ExtensionTerm(e.spec, v_min=v_min, v_range=v_range, coupled_indices=coupled))
+            if e.effect == "energy_dependent_friction":
+                energy = EnergyDynamics(gain=1.0, time_constant=float(e.spec["tau_e"]), h=h)
+        m = JointFriction(terms, joint=cols[j], lam=0.0, energy=energy, joint_number=int(j),
+                          name="diagnosed", energy_additive=False,
+                          torque_limit=1.5 * float(np.max(np.abs(jd.y))))
+        m.coef = np.asarray(fit.coef[j], float).copy()
+        if m.coef.size != m.n_params:
+            raise DrakeEstError(f"joint {j}: {m.coef.size} coefficients for {m.n_params} columns")
+        out[cols[j]] = m
+    return out
+
+
+class FrictionLaw:
+    """Friction torques of the excited joints for a (subset of the) diagnosed model, in log coordinates.
+
+    The numbers come from the diagnosed :class:`JointFriction` models
+    (:func:`diagnosed_friction_models`); the energy of an energy-dependent effect is taken from the
+    measured history (the unit-gain state the regression used, Algorithm 6).
     ``friction(t, q, v)`` takes the log-joint vectors (len = number of log joints) and returns the
     friction torque of every log joint (zero for joints that were not diagnosed)."""
 
@@ -39,56 +81,44 @@ class FrictionLaw:
         self.kind = prep.robot_kind
         self.log_joints = list(prep.log.joints)
         self.sign_eps = float(sign_eps)
-        names = nominal_names(self.kind)
+        cols = {j: c for c, j in enumerate(self.log_joints)}
+        self.models = diagnosed_friction_models(result, model, fit, cols, sign_eps)
         self.parts = {}
         for j, jd in prep.joints.items():
-            c = fit.coef[j]
-            k = len(names)
-            own = []
-            for e in model.own(j):
-                own.append((e, c[k:k + e.n_params]))
-                k += e.n_params
-            v_used = jd.v[jd.rows]
-            self.parts[j] = {"kv": float(c[names.index("kv")]), "kc": float(c[names.index("kc")]),
-                             "J": jd.counts.get("inertia"), "own": own,
-                             "v_range": (float(v_used.min()), float(v_used.max())),
-                             "F_max": 1.5 * float(np.max(np.abs(jd.y))),
-                             "v_min": float(jd.counts["thresholds"]["v_min"])}
-            if any(e.effect == "energy_dependent_friction" for e, _ in own):
-                e = next(e for e, _ in own if e.effect == "energy_dependent_friction")
+            self.parts[j] = {"J": jd.counts.get("inertia"), "model": self.models[cols[j]]}
+            e = next((e for e in model.own(j) if e.effect == "energy_dependent_friction"), None)
+            if e is not None:
                 if e.obj is not None:      # the unit-gain energy state the regression used (Algorithm 6)
                     self.parts[j]["E_t"] = (jd.t, np.asarray(e.obj, float))
                 else:
-                    F = self.parts[j]["kv"] * jd.v + self.parts[j]["kc"] * np.sign(jd.v)
+                    c = fit.coef[j]
+                    F = c[0] * jd.v + c[1] * np.sign(jd.v)
                     self.parts[j]["E_t"] = (jd.t, unit_energy(jd.t, np.abs(F * jd.v), e.spec["tau_e"]))
 
-    def sgn(self, v):
-        return np.tanh(v / self.sign_eps) if self.sign_eps > 0 else np.sign(v)
+    def energy_at(self, t) -> np.ndarray:
+        """The measured-history unit-gain energy of every log joint at time ``t`` (0 where none)."""
+        E = np.zeros(len(self.log_joints))
+        for j, p in self.parts.items():
+            if "E_t" in p:
+                tt, EE = p["E_t"]
+                E[self.log_joints.index(j)] = np.interp(t, tt, EE)
+        return E
 
     def friction(self, t, q, v) -> np.ndarray:
+        q = np.asarray(q, float).reshape(1, -1)
+        v = np.asarray(v, float).reshape(1, -1)
+        E = self.energy_at(t)
         F = np.zeros(len(self.log_joints))
-        for j, p in self.parts.items():
-            c = self.log_joints.index(j)
-            f = p["kv"] * v[c] + p["kc"] * self.sgn(v[c])
-            vr = float(np.clip(v[c], *p["v_range"]))   # basis expansions are not extrapolated in speed
-            for e, coef in p["own"]:
-                E = None
-                if e.effect == "energy_dependent_friction":
-                    tt, EE = p["E_t"]
-                    E = np.array([np.interp(t, tt, EE)])
-                others = {i: np.array([v[self.log_joints.index(i)]]) for i in e.spec.get("coupled_joints", [])}
-                vv = vr if e.effect == "motor_position_ripple" else v[c]
-                cols = columns_at(e.spec, np.array([q[c]]), np.array([vv]), np.array([t]), others, E,
-                                  sign=self.sgn)
-                # the extensions were identified on moving samples only (|v| > v_min, (9.9)):
-                # faded out towards standstill instead of extrapolated there
-                f += float(cols[0] @ coef) * abs(np.tanh(v[c] / p["v_min"]))
-            F[c] = float(np.clip(f, -p["F_max"], p["F_max"]))
+        for c, m in self.models.items():
+            F[c] = float(m.predict(q, v, E[c:c + 1] if m.needs_energy else None, sign_eps=self.sign_eps,
+                                   t=np.array([t]))[0])
         return F
 
 
 class DiagnosedFriction(LeafSystem):
-    """Drake system of a diagnosed friction model.
+    """Drake system of a diagnosed friction model with the *measured* energy history (used by the
+    windowed simulation error; :func:`drake_est.diagnose.friction_system` gives the
+    :class:`~drake_est.systems.friction.FrictionModel` of the same models, with the energy as state).
 
     Input ports ``joint_positions`` [rad] and ``joint_velocities`` [rad/s] (robot coordinates);
     output ``friction_torques`` [N m] (the torque the actuators spend on friction; feed its
@@ -99,13 +129,22 @@ class DiagnosedFriction(LeafSystem):
         self._law = law
         self._n = n_robot
         self._map = [(law.log_joints.index(j), robot_cols[j]) for j in law.log_joints if j in robot_cols]
-        self.DeclareVectorInputPort("joint_positions", n_robot)
-        self.DeclareVectorInputPort("joint_velocities", n_robot)
-        self.DeclareVectorOutputPort("friction_torques", n_robot, self._calc)
+        self._positions = self.DeclareVectorInputPort("joint_positions", n_robot)
+        self._velocities = self.DeclareVectorInputPort("joint_velocities", n_robot)
+        self._torques = self.DeclareVectorOutputPort("friction_torques", n_robot, self._calc)
+
+    def get_joint_positions_input_port(self):
+        return self._positions
+
+    def get_joint_velocities_input_port(self):
+        return self._velocities
+
+    def get_friction_torques_output_port(self):
+        return self._torques
 
     def _calc(self, context, output):
-        qr = self.get_input_port(0).Eval(context)
-        vr = self.get_input_port(1).Eval(context)
+        qr = self._positions.Eval(context)
+        vr = self._velocities.Eval(context)
         m = len(self._law.log_joints)
         q, v = np.zeros(m), np.zeros(m)
         for c, rc in self._map:

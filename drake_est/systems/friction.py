@@ -26,6 +26,7 @@ uses the exact sign).
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -33,19 +34,23 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 
 from drake_est.errors import DataError, DrakeEstError
 from drake_est.identification.friction import JointFriction
+from drake_est.joints import index_to_joint, joint_to_index
+
+
+PARAMS_FORMAT = "drake_est.friction_model/2"
 
 
 def _as_models(models, n_joints):
     if isinstance(models, JointFriction):
         models = [models]
     if isinstance(models, dict):
+        # keys are 1-based joint numbers (issue #18); converted to 0-based indices here
+        keys = list(models)
         if n_joints is None:
-            n_joints = max(models) + 1
+            n_joints = max(joint_to_index(k, None, "friction model key") for k in keys) + 1 if keys else 0
         out = [None] * n_joints
         for k, m in models.items():
-            if not 0 <= int(k) < n_joints:
-                raise DrakeEstError(f"friction model for joint index {k} outside 0..{n_joints - 1}")
-            out[int(k)] = m
+            out[joint_to_index(k, n_joints, "friction model key (a 1-based joint number)")] = m
         models = out
     models = list(models)
     if n_joints is None:
@@ -53,18 +58,19 @@ def _as_models(models, n_joints):
     if len(models) != n_joints:
         raise DrakeEstError(f"{len(models)} friction models for {n_joints} joints")
     fixed = []
-    for j, m in enumerate(models):
+    for index, m in enumerate(models):
         if m is None:
             fixed.append(None)
             continue
         if isinstance(m, dict):
             m = JointFriction.from_dict(m)
         if not isinstance(m, JointFriction):
-            raise DrakeEstError(f"joint {j}: expected a JointFriction or its dict, got {type(m).__name__}")
+            raise DrakeEstError(f"joint {index_to_joint(index)}: expected a JointFriction or its dict, "
+                                f"got {type(m).__name__}")
         if m.coef is None:
-            raise DrakeEstError(f"joint {j}: friction model is not fitted")
+            raise DrakeEstError(f"joint {index_to_joint(index)}: friction model is not fitted")
         m = m.copy()
-        m.joint = j  # the model reads its own joint from column j of the plant's q, dq
+        m.joint = index  # the model reads its own joint from column `index` of the plant's q, dq
         fixed.append(m)
     return fixed, n_joints
 
@@ -74,8 +80,8 @@ class FrictionModel(LeafSystem):
 
     Parameters
     ----------
-    models : list (length n_joints) of JointFriction / its dict / None (no friction),
-        or a dict {0-based joint index: model}, or a single model for a 1-joint system.
+    models : list (length n_joints, in joint order) of JointFriction / its dict / None (no friction),
+        or a dict {1-based joint number: model}, or a single model for a 1-joint system.
     n_joints : number of joints (default: from ``models``).
     sign_eps : smoothing velocity for sign(v) [rad/s]; 0 = exact sign.
     energy_period : update period of the energy state [s] (default: the energy model's h).
@@ -87,9 +93,9 @@ class FrictionModel(LeafSystem):
         self._models, n = _as_models(models, n_joints)
         self._n = n
         self._sign_eps = float(sign_eps)
-        self.DeclareVectorInputPort("joint_positions", n)
-        self.DeclareVectorInputPort("joint_velocities", n)
-        self.DeclareVectorOutputPort("friction_torques", n, self._calc_torques)
+        self._positions = self.DeclareVectorInputPort("joint_positions", n)
+        self._velocities = self.DeclareVectorInputPort("joint_velocities", n)
+        self._torques = self.DeclareVectorOutputPort("friction_torques", n, self._calc_torques)
         self._energy_joints = [j for j, m in enumerate(self._models) if m is not None and m.energy is not None]
         self._E_index = None
         if self._energy_joints:
@@ -120,21 +126,22 @@ class FrictionModel(LeafSystem):
         return list(self._models)
 
     def get_joint_positions_input_port(self):
-        return self.GetInputPort("joint_positions")
+        return self._positions
 
     def get_joint_velocities_input_port(self):
-        return self.GetInputPort("joint_velocities")
+        return self._velocities
 
     def get_friction_torques_output_port(self):
-        return self.GetOutputPort("friction_torques")
+        return self._torques
 
     def _E(self, context):
         if self._E_index is None:
             return np.zeros(self._n)
         return context.get_discrete_state(self._E_index).CopyToVector()
 
-    def friction(self, q, v, E=None) -> np.ndarray:
-        """F(q, v, E) for one configuration (n,) -- the same numbers as the output port."""
+    def friction(self, q, v, E=None, t: float = 0.0) -> np.ndarray:
+        """F(q, v, E, t) for one configuration (n,) -- the same numbers as the output port
+        (``t`` [s]: time, read by time-dependent terms such as a diagnosed abrupt change)."""
         q = np.asarray(q, float).reshape(1, -1)
         v = np.asarray(v, float).reshape(1, -1)
         if q.shape[1] != self._n or v.shape[1] != self._n:
@@ -144,24 +151,23 @@ class FrictionModel(LeafSystem):
         for j, m in enumerate(self._models):
             if m is None:
                 continue
-            Ej = np.array([E[j]]) if m.energy is not None or any(t.needs_energy for t in m.terms) else None
-            F[j] = float(m.predict(q, v, Ej, sign_eps=self._sign_eps)[0])
+            Ej = np.array([E[j]]) if m.needs_energy else None
+            tj = np.array([t]) if m.needs_time else None
+            F[j] = float(m.predict(q, v, Ej, sign_eps=self._sign_eps, t=tj)[0])
         return F
 
     # ------------------------------------------------------------------ callbacks
     def _qv(self, context):
-        q = self.get_input_port(0).Eval(context)
-        v = self.get_input_port(1).Eval(context)
-        return q, v
+        return self._positions.Eval(context), self._velocities.Eval(context)
 
     def _calc_torques(self, context, output):
         q, v = self._qv(context)
-        output.SetFromVector(self.friction(q, v, self._E(context)))
+        output.SetFromVector(self.friction(q, v, self._E(context), context.get_time()))
 
     def _update_energy(self, context, discrete_state):
         q, v = self._qv(context)
         E = self._E(context)
-        F = self.friction(q, v, E)
+        F = self.friction(q, v, E, context.get_time())
         Enew = E.copy()
         for j in self._energy_joints:
             a, b = self._ab[j]
@@ -184,19 +190,46 @@ class FrictionModel(LeafSystem):
                   for j in range(kc.size)]
         return cls(models, sign_eps=sign_eps)
 
+    def to_params(self) -> dict:
+        """The models as a JSON-able ``params.json`` dict: ``{"format": "drake_est.friction_model/2",
+        "n_joints": n, "models": {"<1-based joint number>": model dict}}`` (:meth:`from_json` reads it)."""
+        return {"format": PARAMS_FORMAT, "n_joints": self._n,
+                "models": {str(index_to_joint(i)): m.to_dict() for i, m in enumerate(self._models) if m is not None}}
+
+    @classmethod
+    def from_params(cls, d: dict, n_joints: int | None = None, sign_eps: float = 0.0, source: str = "params") -> "FrictionModel":
+        """Build from a params dict: :meth:`to_params`'s format, ``drake-est fit-friction``'s ``params.json``
+        (``{"model": ...}``, placed at its 1-based joint number), or a single model dict.
+
+        Files written before issue #18 keyed ``models`` by 0-based index (no ``format``): they are
+        still read, as 0-based indices, with a ``DeprecationWarning`` (re-save with :meth:`to_params`)."""
+        if "models" in d:
+            if d.get("format") == PARAMS_FORMAT:
+                models = {int(k): v for k, v in d["models"].items()}
+                n_joints = n_joints if n_joints is not None else d.get("n_joints")
+            else:
+                warnings.warn(f"{source}: friction models keyed by 0-based index (written before drake_est "
+                              f"issue #18); read as indices 0.. -- re-save with FrictionModel.to_params() to get "
+                              f"1-based joint keys", DeprecationWarning, stacklevel=3)
+                models = {int(k) + 1: v for k, v in d["models"].items()}
+        else:
+            m = d["model"] if "model" in d else d
+            models = {JointFriction.from_dict(m).joint_number_or_index(): m}
+        return cls(models, n_joints=n_joints, sign_eps=sign_eps)
+
     @classmethod
     def from_json(cls, path, n_joints: int | None = None, sign_eps: float = 0.0) -> "FrictionModel":
-        """Load models written by ``drake-est fit-friction`` (``params.json``: one model or
-        ``{"models": {"<0-based index>": model}}``)."""
-        d = json.loads(Path(path).read_text())
-        if "models" in d:
-            models = {int(k): v for k, v in d["models"].items()}
-        elif "model" in d:
-            idx = d["model"].get("joint", 0)
-            models = {int(idx): d["model"]}
-        else:
-            models = {int(d.get("joint", 0)): d}
-        return cls(models, n_joints=n_joints, sign_eps=sign_eps)
+        """Load models written by ``drake-est fit-friction`` or :meth:`to_params` (see :meth:`from_params`)."""
+        try:
+            d = json.loads(Path(path).read_text())
+        except (OSError, ValueError) as e:
+            raise DataError(f"cannot read friction params {path}: {e}") from None
+        return cls.from_params(d, n_joints=n_joints, sign_eps=sign_eps, source=str(path))
+
+    def write_json(self, path) -> Path:
+        """Write :meth:`to_params` as ``params.json`` (no NaN/Inf)."""
+        from drake_est.jsonutil import dump_json
+        return dump_json(self.to_params(), path)
 
 
 def add_friction(builder, plant, friction: FrictionModel, actuation_source=None):

@@ -44,8 +44,9 @@ from __future__ import annotations
 
 from drake_est.identification.friction.terms import (AsymmetricCoulomb, BFETerm, Coulomb, CoupledJoint,
                                                      EnergyDynamics, Gravity, Offset, TWO_PI, Term,
-                                                     Viscous, _cols, _sign, coupled_joints, motor_position,
-                                                     term_from_dict)  # noqa: F401
+                                                     Viscous, _cols, _sign, coupled_joints, motor_position)  # noqa: F401
+from drake_est.identification.friction.extensions import (ExtensionTerm, RippleRegressors, columns_at,  # noqa: F401
+                                                          gaussian_features, term_from_dict, unit_energy)
 from drake_est.identification.friction.model import (JointFriction, _check_identifiable, _gram_ridge)  # noqa: F401
 from drake_est.identification.friction.energy import (EnergyFit, fit_energy, friction_power, initial_guess,
                                                       oe_fit, simulate_energy_system)  # noqa: F401
@@ -57,7 +58,8 @@ from drake_est.identification.friction.multijoint import (MultiJointFit, fit_mul
 from drake_est.regression import ridge_cv  # noqa: F401  (old location of the CV helper)
 
 __all__ = ['TWO_PI', 'motor_position', 'Term', 'Coulomb', 'Viscous', 'AsymmetricCoulomb', 'Offset', 'Gravity',
-           'CoupledJoint', 'coupled_joints', 'BFETerm', 'term_from_dict', 'EnergyDynamics',
+           'CoupledJoint', 'coupled_joints', 'BFETerm', 'term_from_dict', 'ExtensionTerm', 'RippleRegressors', 'columns_at', 'gaussian_features',
+           'unit_energy', 'EnergyDynamics',
            'JointFriction', 'EnergyFit', 'fit_energy', 'friction_power', 'initial_guess', 'oe_fit',
            'simulate_energy_system', 'Selection', 'select_steady', 'NOMINAL_KINDS', 'nominal_terms',
            'MODELS', 'build_model', 'add_energy_expansion', 'evaluate', 'split_holdout', 'FrictionResult',

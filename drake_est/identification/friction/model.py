@@ -7,10 +7,12 @@ import copy
 import numpy as np
 
 from drake_est.errors import DataError, DrakeEstError, IdentifiabilityError
+from drake_est.joints import index_to_joint, joint_to_index
 from drake_est.regression import check_excitation, ridge_cv, ridge_fit, ridge_gram_dof, ridge_gram_solve
 
+from drake_est.identification.friction.extensions import term_from_dict
 from drake_est.identification.friction.terms import (AsymmetricCoulomb, BFETerm, Coulomb, EnergyDynamics, Viscous,
-                                                     _cols, _sign, term_from_dict)
+                                                     _cols, _sign)
 
 # --------------------------------------------------------------------------- fast ridge for CV
 
@@ -33,10 +35,16 @@ class JointFriction:
         contiguous 5-fold cross-validation in :meth:`fit`.
     energy : :class:`EnergyDynamics` or None.
     joint_number : the 1-based robot joint number (metadata only).
+    energy_additive : True (identification, (9.22)): F = F_n + sign(v) E; False (a diagnosed energy
+        effect): E is only an input of the terms that read it (``needs_energy``), e.g. sign(v) E with a
+        fitted coefficient and a unit-gain ``energy``.
+    torque_limit : optional bound |F| <= torque_limit [N m] on the predicted torque (diagnosed models
+        clip at 1.5 x the largest torque seen, instead of extrapolating).
     """
 
     def __init__(self, terms, joint: int = 0, lam="cv", energy: EnergyDynamics | None = None,
-                 joint_number: int | None = None, name: str = ""):
+                 joint_number: int | None = None, name: str = "", energy_additive: bool = True,
+                 torque_limit: float | None = None):
         self.terms = list(terms)
         if not self.terms:
             raise DrakeEstError("a friction model needs at least one term")
@@ -47,6 +55,8 @@ class JointFriction:
         self.name = name
         self.coef = None
         self.info = {}
+        self.energy_additive = bool(energy_additive)
+        self.torque_limit = None if torque_limit is None else float(torque_limit)
 
     # ---------------------------------------------------------------- regressors
     @property
@@ -65,14 +75,23 @@ class JointFriction:
     def has_bfe(self) -> bool:
         return any(t.penalized for t in self.terms)
 
-    def regressors(self, Q, DQ, E=None, sign_eps: float = 0.0):
-        """Regressor matrix A (N, p) and the column names."""
+    @property
+    def needs_time(self) -> bool:
+        return any(t.needs_time for t in self.terms)
+
+    @property
+    def needs_energy(self) -> bool:
+        return self.energy is not None or any(t.needs_energy for t in self.terms)
+
+    def regressors(self, Q, DQ, E=None, sign_eps: float = 0.0, t=None):
+        """Regressor matrix A (N, p) and the column names (``t``: time [s], for terms that need it)."""
         Q, DQ = _cols(Q, "q"), _cols(DQ, "dq")
         if Q.shape != DQ.shape:
             raise DataError(f"q has shape {Q.shape} but dq has {DQ.shape}")
         if not 0 <= self.joint < Q.shape[1]:
             raise DataError(f"joint column {self.joint} not in data with {Q.shape[1]} joints")
-        A = np.hstack([t.columns(Q, DQ, self.joint, E, sign_eps) for t in self.terms])
+        A = np.hstack([tm.columns(Q, DQ, self.joint, E, sign_eps, t=t) if tm.needs_time
+                       else tm.columns(Q, DQ, self.joint, E, sign_eps) for tm in self.terms])
         return A, self.names
 
     # ---------------------------------------------------------------- fitting
@@ -129,10 +148,10 @@ class JointFriction:
         if self.coef is None:
             raise DrakeEstError("friction model is not fitted yet")
 
-    def predict_nominal(self, Q, DQ, E=None, sign_eps: float = 0.0) -> np.ndarray:
+    def predict_nominal(self, Q, DQ, E=None, sign_eps: float = 0.0, t=None) -> np.ndarray:
         """F_n(q, dq[, E]): the linear part, without the sign(v) E term."""
         self._check_fitted()
-        A, _ = self.regressors(Q, DQ, E, sign_eps)
+        A, _ = self.regressors(Q, DQ, E, sign_eps, t)
         return A @ self.coef
 
     def simulate_energy(self, Q, DQ, E0: float | None = None) -> np.ndarray:
@@ -151,7 +170,8 @@ class JointFriction:
         if any(t.needs_energy for t in self.terms):
             for k in range(N):
                 E[k] = e
-                f = float(self.predict_nominal(Q[k:k + 1], DQ[k:k + 1], np.array([e]))[0]) + s[k] * e
+                f = float(self.predict_nominal(Q[k:k + 1], DQ[k:k + 1], np.array([e]))[0])
+                f += s[k] * e if self.energy_additive else 0.0
                 e = a * e + b * abs(f * v[k])
         else:
             Fn = self.predict_nominal(Q, DQ)
@@ -160,15 +180,18 @@ class JointFriction:
                 e = a * e + b * abs((Fn[k] + s[k] * e) * v[k])
         return E
 
-    def predict(self, Q, DQ, E=None, sign_eps: float = 0.0) -> np.ndarray:
+    def predict(self, Q, DQ, E=None, sign_eps: float = 0.0, t=None) -> np.ndarray:
         """Friction torque F [N m]. For an energy model, ``E`` is the energy signal;
-        when omitted it is simulated from the data (:meth:`simulate_energy`)."""
+        when omitted it is simulated from the data (:meth:`simulate_energy`). ``t`` [s]: the time of
+        each sample, for terms that need it (abrupt change)."""
         self._check_fitted()
         if self.energy is not None and E is None:
             E = self.simulate_energy(Q, DQ)
-        F = self.predict_nominal(Q, DQ, E, sign_eps)
-        if self.energy is not None:
+        F = self.predict_nominal(Q, DQ, E, sign_eps, t)
+        if self.energy is not None and self.energy_additive:
             F = F + _sign(_cols(DQ, "dq")[:, self.joint], sign_eps) * np.asarray(E, dtype=float).ravel()
+        if self.torque_limit is not None:
+            F = np.clip(F, -self.torque_limit, self.torque_limit)
         return F
 
     # ---------------------------------------------------------------- parameters / io
@@ -189,23 +212,35 @@ class JointFriction:
 
     def to_dict(self) -> dict:
         self._check_fitted()
-        return {"format": "drake_est.friction/1", "name": self.name, "joint": self.joint,
-                "joint_number": self.joint_number, "terms": [t.to_dict() for t in self.terms],
+        return {"format": "drake_est.friction/2", "name": self.name, "joint": self.joint_number_or_index(),
+                "index": self.joint, "joint_number": self.joint_number, "terms": [t.to_dict() for t in self.terms],
                 "names": self.names, "coef": np.asarray(self.coef).tolist(), "lam": self.info.get("lam", 0.0),
                 "params": self.params(), "energy": None if self.energy is None else self.energy.to_dict(),
-                "sign_convention": "tau_measured = ID(q, dq, ddq) + F; F has the sign of the velocity"}
+                "sign_convention": "tau_measured = ID(q, dq, ddq) + F; F has the sign of the velocity",
+                **({} if self.energy_additive else {"energy_additive": False}),
+                **({} if self.torque_limit is None else {"torque_limit": self.torque_limit})}
 
     @classmethod
     def from_dict(cls, d: dict) -> "JointFriction":
-        if d.get("format") != "drake_est.friction/1":
-            raise DataError("not a drake_est friction model (missing format 'drake_est.friction/1')")
-        m = cls([term_from_dict(t) for t in d["terms"]], joint=d.get("joint", 0), lam=d.get("lam", 0.0),
+        fmt = d.get("format")
+        if fmt == "drake_est.friction/2":     # "joint": 1-based joint number, "index": 0-based data column
+            index = int(d.get("index", joint_to_index(d.get("joint", 1), None, "model 'joint'")))
+        elif fmt == "drake_est.friction/1":   # before issue #18: "joint" was the 0-based data column
+            index = int(d.get("joint", 0))
+        else:
+            raise DataError("not a drake_est friction model (missing format 'drake_est.friction/2')")
+        m = cls([term_from_dict(t) for t in d["terms"]], joint=index, lam=d.get("lam", 0.0),
                 energy=None if d.get("energy") is None else EnergyDynamics.from_dict(d["energy"]),
-                joint_number=d.get("joint_number"), name=d.get("name", ""))
+                joint_number=d.get("joint_number"), name=d.get("name", ""),
+                energy_additive=d.get("energy_additive", True), torque_limit=d.get("torque_limit"))
         m.coef = np.asarray(d["coef"], dtype=float)
         if m.coef.size != m.n_params:
             raise DataError(f"friction model has {m.coef.size} coefficients for {m.n_params} regressors")
         return m
+
+    def joint_number_or_index(self) -> int:
+        """The 1-based joint number: ``joint_number`` when known, else the data column + 1."""
+        return int(self.joint_number) if self.joint_number is not None else index_to_joint(self.joint)
 
     def copy(self) -> "JointFriction":
         return copy.deepcopy(self)

@@ -44,6 +44,7 @@ class Term(ABC):
     kind = "term"
     penalized = False  # ridge penalty applies to these columns
     needs_energy = False
+    needs_time = False  # columns(..., t=) needs the time (abrupt change)
 
     @abstractmethod
     def columns(self, Q, DQ, j: int, E=None, sign_eps: float = 0.0):
