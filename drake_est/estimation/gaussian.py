@@ -14,7 +14,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
 
 from drake_est.errors import DataError
 from drake_est.estimation.protocol import Filter, FilterResult, check_inputs
@@ -70,39 +69,44 @@ def chol_lower(P, name: str = "P"):
         raise DataError(f"{name} is not positive definite (Cholesky failed)") from None
 
 
-def gaussian_loglik(e, cf) -> float:
-    """log N(e; 0, S) summed over the columns of e, S given by its Cholesky factor ``cf`` (cho_factor)."""
-    ny = cf[0].shape[0]
-    r = 1 if e.ndim == 1 else e.shape[1]
-    quad = float(np.sum(e * cho_solve(cf, e)))
-    logdet = 2.0 * float(np.sum(np.log(np.abs(np.diag(cf[0])))))
-    return -0.5 * (quad + r * (logdet + ny * _LOG2PI))
+def innovation_solve(S, M, e, what: str = "innovation covariance S = C P C^T + R2"):
+    """Solve with the innovation covariance S (ny, ny): returns (S^{-1} M, log N(e; 0, S) summed over e's
+    columns).  Positive definiteness is checked by a Cholesky factor (also giving log det S); the solve is
+    one LAPACK call on [M, e] (no inverse).  Plain numpy: scipy's wrappers cost more than the work here."""
+    S = 0.5 * (S + S.T)
+    try:
+        L = np.linalg.cholesky(S)
+    except np.linalg.LinAlgError:
+        raise DataError(f"{what} is not positive definite (check R2)") from None
+    ny = S.shape[0]
+    E = e.reshape(ny, -1)
+    X = np.linalg.solve(S, np.concatenate([M, E], axis=1))
+    quad = float(np.sum(E * X[:, M.shape[1]:]))
+    logdet = 2.0 * float(np.sum(np.log(np.diag(L))))
+    return X[:, :M.shape[1]], -0.5 * (quad + E.shape[1] * (logdet + ny * _LOG2PI))
 
 
 def joseph_correct(x, P, e, C, R2):
     """Measurement update, Eqs. (4.23)-(4.25), Joseph form (the project's single Kalman correction).
 
     ``e`` = y - yhat is the innovation (ny,) or (ny, r) (several state columns share P), ``C`` the
-    (linearized) measurement matrix.  K = P C^T S^{-1} by Cholesky solves, never an inverse;
+    (linearized) measurement matrix.  K = P C^T S^{-1} by a solve, never an inverse;
     P+ = (I - K C) P (I - K C)^T + K R2 K^T.  Returns (x+, P+, log N(e; 0, S))."""
     PCt = P @ C.T
     S = C @ PCt + R2
-    try:
-        cf = cho_factor(0.5 * (S + S.T), lower=True)
-    except np.linalg.LinAlgError:
-        raise DataError("innovation covariance S = C P C^T + R2 is not positive definite (check R2)") from None
-    K = cho_solve(cf, PCt.T).T
+    Kt, ll = innovation_solve(S, PCt.T, e)
+    K = Kt.T
     x = x + K @ e
     IKC = np.eye(P.shape[0]) - K @ C
     P = IKC @ P @ IKC.T + K @ R2 @ K.T
-    return x, 0.5 * (P + P.T), gaussian_loglik(e, cf)
+    return x, 0.5 * (P + P.T), ll
 
 
 def rts_backward(x_filt, P_filt, x_pred, P_pred, cross):
     """Rauch-Tung-Striebel backward pass (Sec. 4.3) in cross-covariance form.
 
     ``cross[t]`` = Cov(x_t, x_{t+1} | y_0..y_t) (= P_{t|t} A_t^T for a linear model).  With the gain
-    G_t = cross[t] P_{t+1|t}^{-1} (Cholesky solve):
+    G_t = cross[t] P_{t+1|t}^{-1} (a solve, no inverse):
     x_{t|T} = x_{t|t} + G_t (x_{t+1|T} - x_{t+1|t}),  P_{t|T} = P_{t|t} + G_t (P_{t+1|T} - P_{t+1|t}) G_t^T.
     ``cross`` may be a callable t -> matrix.  Returns (x_smooth, P_smooth)."""
     T = x_filt.shape[0]
@@ -110,8 +114,10 @@ def rts_backward(x_filt, P_filt, x_pred, P_pred, cross):
     Ps = P_filt.copy()
     get = cross if callable(cross) else (lambda t: cross[t])
     for t in range(T - 2, -1, -1):
-        cf = cho_factor(P_pred[t + 1], lower=True)
-        G = cho_solve(cf, get(t).T).T
+        try:
+            G = np.linalg.solve(P_pred[t + 1], get(t).T).T
+        except np.linalg.LinAlgError:
+            raise DataError(f"P_pred is singular at step {t + 1} (RTS smoother; R1 singular?)") from None
         xs[t] = x_filt[t] + G @ (xs[t + 1] - x_pred[t + 1])
         P = P_filt[t] + G @ (Ps[t + 1] - P_pred[t + 1]) @ G.T
         Ps[t] = 0.5 * (P + P.T)

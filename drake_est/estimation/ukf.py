@@ -21,11 +21,9 @@ rounding (tested to 1e-10).
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
-
 from drake_est.errors import DataError
 from drake_est.estimation.ekf import _shape_checked
-from drake_est.estimation.gaussian import GaussianFilter, check_cov, finite, gaussian_loglik
+from drake_est.estimation.gaussian import GaussianFilter, check_cov, finite, innovation_solve
 
 
 class UnscentedKalmanFilter(GaussianFilter):
@@ -82,7 +80,7 @@ class UnscentedKalmanFilter(GaussianFilter):
         return m, 0.5 * (Pn + Pn.T)
 
     def correct(self, x, P, y, u=None, t: int = 0):
-        """Unscented measurement update: K = Pxy S^{-1} (Cholesky solve), P+ = P - K S K^T."""
+        """Unscented measurement update: K = Pxy S^{-1} (a solve, S checked by Cholesky), P+ = P - K S K^T."""
         X = self.sigma_points(x, P, "P_pred", t)
         Y = _shape_checked(self.h(X, u, t), (X.shape[0], self.ny), "h")
         yhat = self.Wm @ Y
@@ -90,15 +88,12 @@ class UnscentedKalmanFilter(GaussianFilter):
         dx = X - x
         S = dy.T @ (self.Wc[:, None] * dy) + self.R2
         Pxy = dx.T @ (self.Wc[:, None] * dy)
-        try:
-            cf = cho_factor(0.5 * (S + S.T), lower=True)
-        except np.linalg.LinAlgError:
-            raise DataError(f"innovation covariance S is not positive definite at step {t} (check R2)") from None
-        K = cho_solve(cf, Pxy.T).T
         e = np.asarray(y, float) - yhat
+        Kt, ll = innovation_solve(S, Pxy.T, e, what=f"innovation covariance S at step {t}")
+        K = Kt.T
         xn = x + K @ e
         Pn = P - K @ S @ K.T
-        return xn, 0.5 * (Pn + Pn.T), gaussian_loglik(e, cf)
+        return xn, 0.5 * (Pn + Pn.T), ll
 
     def smoother_cross(self, t, x_filt, P_filt, u):
         """Unscented RTS: D_t = sum Wc (X_i - x_{t|t})(f(X_i) - x_{t+1|t})^T."""
