@@ -7,10 +7,12 @@ torque the controller must supply. The Diagram comes from ``drake_est.systems.bu
 
     python diagrams/irb140_with_friction.py [--duration 20] [--out irb140_friction.png] [--json result.json]
 
-Prints (and with ``--json`` writes) the tracking error of joint 1 after the start-up transient.
+Prints the tracking error of joint 1 after the start-up transient and writes it to a JSON file beside
+``--out`` (or ``--json FILE``).
 """
 import argparse
 import json
+from pathlib import Path
 
 import matplotlib
 
@@ -55,7 +57,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=20.0)
     ap.add_argument("--out", default="irb140_friction.png")
-    ap.add_argument("--json", default=None, help="write the tracking error etc. to this JSON file")
+    ap.add_argument("--json", default=None, help="JSON file of the results (default: beside --out, .json)")
     args = ap.parse_args()
     diagram, plant, log_x, log_u, traj = build(args.duration)
     sim = Simulator(diagram)
@@ -79,9 +81,8 @@ def main():
     result = {"duration_s": args.duration, "max_tracking_error_joint1_rad": float(err.max()),
               "rms_tracking_error_joint1_rad": float(np.sqrt(np.mean(err ** 2))), "n_samples": int(t.size),
               "figure": args.out}
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(result, f, indent=2)
+    with open(args.json or str(Path(args.out).with_suffix(".json")), "w") as f:
+        json.dump(result, f, indent=2, allow_nan=False)
     print(f"simulated {args.duration:.0f} s; max tracking error {err.max():.2e} rad; wrote {args.out}")
 
 
