@@ -34,7 +34,7 @@ def jit_point(fun):
     return j
 
 
-def _chunk_loop(f_point, h_point, x, logw, u, y, missing, t0, K, z, uu, L1, L2, g0, thr,
+def _chunk_loop(f_point, h_point, x, logw, w, u, y, missing, t0, K, z, uu, L1, L2, g0, thr,
                 xf, Pf, xp, Pp, ess, flags, cov):
     """Steps t0 .. t0+K-1 (in place on x, logw and the outputs); returns the summed log-likelihood.
 
@@ -44,7 +44,6 @@ def _chunk_loop(f_point, h_point, x, logw, u, y, missing, t0, K, z, uu, L1, L2, 
     T = y.shape[0]
     a = np.empty(N)
     g = np.empty(N)
-    w = np.empty(N)
     c = np.empty(N)
     yh = np.empty(ny)
     r = np.empty(ny)
@@ -58,7 +57,7 @@ def _chunk_loop(f_point, h_point, x, logw, u, y, missing, t0, K, z, uu, L1, L2, 
             break
         ut = u[t]
         # predicted moments
-        _moments(x, logw, w, m, xp[t], Pp[t], cov)
+        _wmoments(x, w, m, xp[t], Pp[t], cov)      # w = exp(logw), kept normalised across steps
         if not missing[t]:
             # weights: a_i = logw_i + log N(y; h(x_i), R2)
             nanlike = False
@@ -94,16 +93,19 @@ def _chunk_loop(f_point, h_point, x, logw, u, y, missing, t0, K, z, uu, L1, L2, 
                         amax = a[i]
             s = 0.0
             for i in range(N):
-                s += np.exp(a[i] - amax)
+                ei = np.exp(a[i] - amax)
+                w[i] = ei
+                s += ei
             lse = amax + np.log(s)
             if not degenerate:
                 ll += lse
             else:
                 ll += -np.inf
             s2 = 0.0
+            inv_s = 1.0 / s
             for i in range(N):
                 logw[i] = a[i] - lse
-                w[i] = np.exp(logw[i])
+                w[i] *= inv_s
                 s2 += w[i] * w[i]
             e = 1.0 / s2
             ess[t] = e
@@ -113,6 +115,7 @@ def _chunk_loop(f_point, h_point, x, logw, u, y, missing, t0, K, z, uu, L1, L2, 
                 _systematic(x, w, uu[k], c, xn)
                 for i in range(N):
                     logw[i] = -np.log(N)
+                    w[i] = 1.0 / N
         else:
             xf[t, :] = xp[t]
             if cov:
@@ -148,6 +151,7 @@ def _chunk_loop(f_point, h_point, x, logw, u, y, missing, t0, K, z, uu, L1, L2, 
             _systematic(x, w, uu[k], c, xn)
             for i in range(N):
                 logw[i] = -np.log(N)
+                w[i] = 1.0 / N
     return ll
 
 
@@ -300,9 +304,10 @@ def run_fused(pf, u, y, covariances: bool = True) -> FilterResult:
     flags = np.zeros(T, np.int64)
     ll = 0.0
     K = pf.chunk
+    wcur = np.exp(logw)
     for c in range((T + K - 1) // K):
         z, uu = pf._draws(c)
-        ll += _chunk_loop_jit(f1, h1, x, logw, uu_, y_, missing, c * K, K, z, uu, pf.L1, pf.L2, pf._g0,
+        ll += _chunk_loop_jit(f1, h1, x, logw, wcur, uu_, y_, missing, c * K, K, z, uu, pf.L1, pf.L2, pf._g0,
                               pf.resample_threshold, xf, Pf, xp, Pp, ess, flags, covariances)
     # moments of the final prediction
     w = np.exp(logw - logw.max()); w /= w.sum()
