@@ -170,7 +170,7 @@ def bench_ekf_ukf(sizes=(4, 12), T=2000, repeat=3, irb140_steps=50):
                                                 1e-4 * np.eye(nx), measurement=C)
         u = np.zeros((irb140_steps, 6))
         y = np.tile(x0[:nq], (irb140_steps, 1))
-        for name, filt in (("EKF from IRB140 MultibodyPlant (finite-difference Jacobian)", ekf),
+        for name, filt in (("EKF from IRB140 MultibodyPlant (AutoDiffXd Jacobian)", ekf),
                            ("UKF from IRB140 MultibodyPlant", ukf)):
             sec, _ = _best(lambda: filt.forward_trajectory(u, y), 1)
             rows.append(dict(section="ekf_ukf", row=f"drake_est {name}", nx=nx, T=irb140_steps,

@@ -85,6 +85,12 @@ def test_from_discrete_multibody_plant_runs():
     R1, R2, P0 = 1e-8 * np.eye(nx), 1e-4 * np.eye(nq), 1e-4 * np.eye(nx)
     ekf = ExtendedKalmanFilter.from_system(plant, R1, R2, x0, P0, measurement=C)
     ukf = UnscentedKalmanFilter.from_system(plant, R1, R2, x0, P0, measurement=C)
+    # the Jacobian comes from AutoDiffXd through the plant's discrete step, and agrees with differences
+    assert ekf.F is not None
+    from drake_est.estimation.ekf import fd_jacobian
+    xv = x0 + np.r_[np.zeros(6), 0.1 * np.ones(6)]
+    np.testing.assert_allclose(ekf.jacobian_f(xv, np.zeros(6), 0), fd_jacobian(ekf.f, xv, np.zeros(6), 0, nx),
+                               atol=1e-8)
     T = 4
     u = np.zeros((T, 6))
     xs = [x0]

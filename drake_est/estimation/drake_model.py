@@ -5,8 +5,8 @@
   the Jacobian df/dx comes from the system's AutoDiffXd scalar conversion (exact) when it has one, else None
   (the caller falls back to finite differences);
 * a ``MultibodyPlant`` with a time step: x = [q; v], u = actuation; one step is advanced by a ``Simulator``
-  over one period (the plant's discrete step is not exposed as a unique periodic update); the Jacobian is
-  None (central differences in the caller).
+  over one period (the plant's discrete step is not exposed as a unique periodic update); the Jacobian comes
+  from the same step on the plant's AutoDiffXd scalar conversion (``Simulator_[AutoDiffXd]``, exact).
 
 ``f`` broadcasts over leading dimensions of x (rows evaluated one by one through the Context).
 """
@@ -41,7 +41,27 @@ def discrete_model(system):
             sim.Initialize()
             sim.AdvanceTo(period)
             return system.GetPositionsAndVelocities(ctx).copy()
+
         jac = None
+        try:
+            ad = system.ToAutoDiffXd()
+        except Exception:
+            ad = None
+        if ad is not None:
+            from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, InitializeAutoDiff
+            from pydrake.systems.analysis import Simulator_
+            ctx_ad = ad.CreateDefaultContext()
+            sim_ad = Simulator_[AutoDiffXd](ad, ctx_ad)
+            uport_ad = ad.get_actuation_input_port()
+
+            def jac(x, u, t=0):
+                uu = np.zeros(nu) if u is None else np.asarray(u, float)
+                uport_ad.FixValue(ctx_ad, np.array([AutoDiffXd(float(v), np.zeros(nx)) for v in uu]))
+                ctx_ad.SetTime(0.0)
+                ad.SetPositionsAndVelocities(ctx_ad, InitializeAutoDiff(np.asarray(x, float)).ravel())
+                sim_ad.Initialize()
+                sim_ad.AdvanceTo(period)
+                return ExtractGradient(ad.GetPositionsAndVelocities(ctx_ad)).reshape(nx, nx)
     else:
         try:
             period = system.GetUniquePeriodicDiscreteUpdateAttribute().period_sec()

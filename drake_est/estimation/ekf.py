@@ -98,7 +98,7 @@ class ExtendedKalmanFilter(GaussianFilter):
         """EKF of a discrete-time Drake ``LeafSystem`` or a discrete ``MultibodyPlant`` (x = [q; v]).
 
         f is the system's discrete update; F from AutoDiffXd scalar conversion when the system supports it
-        (otherwise, e.g. for a MultibodyPlant, central differences); ``measurement`` is a callable
+        (a discrete MultibodyPlant does, stepped by ``Simulator_[AutoDiffXd]``), otherwise central differences; ``measurement`` is a callable
         h(x, u, t) or a matrix C (y = C x, H = C).  The model's period is stored as ``self.period``."""
         from drake_est.estimation.drake_model import discrete_model, measurement_function
 
