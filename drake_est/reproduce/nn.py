@@ -227,10 +227,15 @@ def nn_linear(out_dir, quick=False, seed=0, n_runs=None, n_tune=None, epochs=Non
 
     def eigplot(ax, key, title):
         e = first[key]["eig"].ravel()
-        ax.plot(np.cos(th), np.sin(th), "k-", lw=0.5)
+        ax.plot(np.cos(th), np.sin(th), "k-", lw=0.5, label="unit circle")
         ax.plot(e.real, e.imag, ".", color="tab:blue", ms=2, alpha=0.4, label="learned")
         ax.plot(truth.real, truth.imag, "o", color="tab:red", ms=4, label="true")
-        ax.set_aspect("equal")
+        pts = np.concatenate([e, truth])          # zoom on the eigenvalues (they cluster near 1)
+        lo = np.array([pts.real.min(), pts.imag.min()])
+        hi = np.array([pts.real.max(), pts.imag.max()])
+        pad = 0.08 * max(hi - lo) + 1e-3
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
         ax.set_title(title, fontsize=9)
         ax.set_xlabel("Re")
         ax.set_ylabel("Im")
