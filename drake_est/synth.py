@@ -28,19 +28,19 @@ plus torque noise and encoder quantization (always).
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
 
 import numpy as np
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import BasicVector, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_est.data import Log
 from drake_est.effects import EFFECTS  # the one effect list (re-exported here)
 from drake_est.errors import DrakeEstError
+from drake_est.identification.friction.truth import FrictionTruth  # noqa: F401  (re-exported)
 from drake_est.robots import irb140_metadata, models_dir
+from drake_est.systems.friction import TrueJointFriction  # noqa: F401  (re-exported)
 from drake_est.systems.builders import (Irb140SimulationConfig, MakeIrb140Simulation, PlantConfig,
                                        TrackingControllerConfig)
 
@@ -48,98 +48,8 @@ from drake_est.systems.builders import (Irb140SimulationConfig, MakeIrb140Simula
 # ----------------------------------------------------------------------------- truth model
 
 
-@dataclass
-class FrictionTruth:
-    """True joint friction of all n joints (arm side), with optional hidden effects.
-
-    Nominal part: F = kv v + kc sign(v) (9.2), kc_pos / kc_neg when asymmetric (9.3).
-    Effect parameters are dicts keyed by 0-based joint index."""
-
-    kc: np.ndarray
-    kv: np.ndarray
-    kc_neg: np.ndarray | None = None          # asymmetric Coulomb: level for v < 0
-    bumps: dict | None = None                 # j -> (centers, widths, amplitudes)       position dependence
-    ripple: dict | None = None                # j -> (gear, harmonic, a0, v_half, phase) motor ripple
-    energy: dict | None = None                # j -> (k_e, tau_e)                         energy dependence
-    coupling: dict | None = None              # j -> list of (i, kc_i, kv_i)               gear coupling (9.12)
-    change: dict | None = None                # j -> (t_change, kc_after, kv_after)        abrupt change
-    v_eps: float = 2e-3                       # smoothing of sign() near v = 0 [rad/s]
-    active: np.ndarray | None = None          # joints with friction (held joints: None = all)
-
-    def coulomb_level(self, j: int, q: float, v: float, t: float, E: float = 0.0) -> float:
-        kc = self.kc[j]
-        if self.kc_neg is not None and v < 0:
-            kc = self.kc_neg[j]
-        if self.change and j in self.change and t >= self.change[j][0]:
-            kc = self.change[j][1] * (1.0 if (self.kc_neg is None or v >= 0) else self.kc_neg[j] / self.kc[j])
-        level = kc
-        if self.bumps and j in self.bumps:
-            c, w, a = self.bumps[j]
-            level += float(np.sum(a * np.exp(-0.5 * ((q - c) / w) ** 2)))
-        return level + E
-
-    def torque(self, q, v, t, E=None) -> np.ndarray:
-        """Friction torques (n,) [N m] opposing the motion (tau_motor = ID + F)."""
-        n = len(self.kc)
-        F = np.zeros(n)
-        E = np.zeros(n) if E is None else E
-        for j in range(n):
-            if self.active is not None and not self.active[j]:
-                continue
-            s = np.tanh(v[j] / self.v_eps)
-            kv = self.kv[j]
-            if self.change and j in self.change and t >= self.change[j][0]:
-                kv = self.change[j][2]
-            F[j] = kv * v[j] + s * self.coulomb_level(j, q[j], v[j], t, E[j])
-            if self.ripple and j in self.ripple:
-                g, h, a0, vh, ph = self.ripple[j]
-                F[j] += a0 / (1.0 + abs(v[j]) / vh) * np.sin(h * np.mod(g * q[j], 2 * np.pi) + ph)
-            if self.coupling and j in self.coupling:
-                for i, kci, kvi in self.coupling[j]:
-                    F[j] += kvi * v[i] + kci * np.tanh(v[i] / self.v_eps)
-        return F
-
-    def energy_rate(self, F, v, E) -> np.ndarray:
-        """dE/dt for each joint: (k_e W - E) / tau_e with W = |F v| (9.21), (9.23)."""
-        dE = np.zeros(len(E))
-        if self.energy:
-            for j, (ke, te) in self.energy.items():
-                dE[j] = (ke * abs(F[j] * v[j]) - E[j]) / te
-        return dE
-
-
-class TrueJointFriction(LeafSystem):
-    """Applies :class:`FrictionTruth` to a plant: input ``state`` [q (rad); v (rad/s)],
-    output ``friction_torques`` [N m]; continuous state E (energy effect), so the whole
-    truth lives in the Context."""
-
-    def __init__(self, truth: FrictionTruth):
-        super().__init__()
-        self._truth = truth
-        n = len(truth.kc)
-        self._n = n
-        self.DeclareVectorInputPort("state", 2 * n)
-        self._has_energy = bool(truth.energy)
-        if self._has_energy:
-            self.DeclareContinuousState(n)
-        self.DeclareVectorOutputPort("friction_torques", n, self._calc_torque)
-
-    def _qv(self, context):
-        x = self.get_input_port(0).Eval(context)
-        return x[:self._n], x[self._n:]
-
-    def _calc_torque(self, context, output):
-        q, v = self._qv(context)
-        E = context.get_continuous_state_vector().CopyToVector() if self._has_energy else None
-        output.SetFromVector(self._truth.torque(q, v, context.get_time(), E))
-
-    def DoCalcTimeDerivatives(self, context, derivatives):
-        if not self._has_energy:
-            return
-        q, v = self._qv(context)
-        E = context.get_continuous_state_vector().CopyToVector()
-        F = self._truth.torque(q, v, context.get_time(), E)
-        derivatives.get_mutable_vector().SetFromVector(self._truth.energy_rate(F, v, E))
+# FrictionTruth (numpy) lives in drake_est.identification.friction.truth and its LeafSystem
+# TrueJointFriction in drake_est.systems.friction (one place for friction); re-exported here.
 
 
 # ----------------------------------------------------------------------------- trajectories

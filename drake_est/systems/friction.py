@@ -76,7 +76,10 @@ def _as_models(models, n_joints):
 
 
 class FrictionModel(LeafSystem):
-    """Joint friction torques F(q, dq[, E]) [N m] of ``n_joints`` joints.
+    """Joint friction torques F(q, dq[, E, t]) [N m] of ``n_joints`` joints (thesis Ch. 9).
+
+    Ports: inputs ``joint_positions`` (n,) [rad] and ``joint_velocities`` (n,) [rad/s]; output
+    ``friction_torques`` (n,) [N m].  Energy models keep E [N m] as discrete state in the Context.
 
     Parameters
     ----------
@@ -232,6 +235,50 @@ class FrictionModel(LeafSystem):
         return dump_json(self.to_params(), path)
 
 
+class TrueJointFriction(LeafSystem):
+    """Applies the synthetic logs' :class:`~drake_est.identification.friction.truth.FrictionTruth` to a
+    plant, with the ports of :class:`FrictionModel`: inputs ``joint_positions`` (n,) [rad] and
+    ``joint_velocities`` (n,) [rad/s], output ``friction_torques`` (n,) [N m]; continuous state E
+    [N m] (energy effect, (9.23)), so the whole truth lives in the Context."""
+
+    def __init__(self, truth):
+        super().__init__()
+        self._truth = truth
+        n = len(truth.kc)
+        self._n = n
+        self._positions = self.DeclareVectorInputPort("joint_positions", n)
+        self._velocities = self.DeclareVectorInputPort("joint_velocities", n)
+        self._has_energy = bool(truth.energy)
+        if self._has_energy:
+            self.DeclareContinuousState(n)
+        self._torques = self.DeclareVectorOutputPort("friction_torques", n, self._calc_torque)
+
+    def get_joint_positions_input_port(self):
+        return self._positions
+
+    def get_joint_velocities_input_port(self):
+        return self._velocities
+
+    def get_friction_torques_output_port(self):
+        return self._torques
+
+    def _qv(self, context):
+        return self._positions.Eval(context), self._velocities.Eval(context)
+
+    def _calc_torque(self, context, output):
+        q, v = self._qv(context)
+        E = context.get_continuous_state_vector().CopyToVector() if self._has_energy else None
+        output.SetFromVector(self._truth.torque(q, v, context.get_time(), E))
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        if not self._has_energy:
+            return
+        q, v = self._qv(context)
+        E = context.get_continuous_state_vector().CopyToVector()
+        F = self._truth.torque(q, v, context.get_time(), E)
+        derivatives.get_mutable_vector().SetFromVector(self._truth.energy_rate(F, v, E))
+
+
 def add_friction(builder, plant, friction: FrictionModel, actuation_source=None):
     """Wire ``friction`` into ``plant``: its positions/velocities feed the friction
     model and ``-F`` (plus ``actuation_source``'s output port, if given) drives the
@@ -256,3 +303,36 @@ def add_friction(builder, plant, friction: FrictionModel, actuation_source=None)
     builder.Connect(neg.get_output_port(), add.get_input_port(1))
     builder.Connect(add.get_output_port(), plant.get_actuation_input_port())
     return add
+
+
+def contract_cases():
+    """FrictionModel (Coulomb + viscous, direction-dependent, and an energy model with discrete state)
+    and TrueJointFriction; expected outputs from the plain models (JointFriction.predict, FrictionTruth.torque)."""
+    from drake_est.identification.friction import EnergyDynamics, JointFriction
+    from drake_est.identification.friction.truth import FrictionTruth
+    from drake_est.systems.contract import ContractCase
+
+    q = np.array([0.3, -0.4])
+    v = np.array([0.5, -0.2])
+    inputs = {"joint_positions": q, "joint_velocities": v}
+
+    def make_cv():
+        return FrictionModel.coulomb_viscous([2.0, 1.5], [0.8, 0.4], kc_minus=[1.8, 1.2])
+
+    def cv_expected(s):
+        return {"friction_torques": [float(m.predict(q[None], v[None])[0]) for m in s.models]}
+
+    def make_energy():
+        m = JointFriction.coulomb_viscous(2.0, 0.8, joint=0)
+        m.energy = EnergyDynamics(gain=0.05, time_constant=0.5, h=0.01)
+        return FrictionModel([m, None], sign_eps=0.01)
+
+    truth = FrictionTruth(kc=np.array([2.0, 1.0]), kv=np.array([0.8, 0.3]), kc_neg=np.array([1.7, 0.9]),
+                          bumps={0: (np.array([0.2]), np.array([0.3]), np.array([0.5]))})
+
+    def truth_expected(s):
+        return {"friction_torques": truth.torque(q, v, 0.05)}
+
+    return [ContractCase(make_cv, inputs, expected=cv_expected, label="coulomb_viscous"),
+            ContractCase(make_energy, inputs, t_final=0.05, label="energy state"),
+            ContractCase(lambda: TrueJointFriction(truth), inputs, expected=truth_expected, label="truth")]
