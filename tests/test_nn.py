@@ -120,6 +120,17 @@ def test_drake_multilayer_perceptron_roundtrip():
     np.testing.assert_allclose(back.jacobian(xs[0], us[0]), model.jacobian(xs[0], us[0]), atol=1e-14)
 
 
+def test_inputs_may_have_one_row_less_than_states():
+    """x_0..x_T with u_0..u_{T-1} (the LTV convention) trains exactly like u with an unused last row."""
+    A, B, xs, us = _linear_data(8, T=30)
+    kw = dict(hidden=(4,), epochs=3, progress_bar=False)
+    a = NeuralDynamicsModel(**kw).fit(xs, [u[:-1] for u in us])
+    b = NeuralDynamicsModel(**kw).fit(xs, [np.vstack([u[:-1], 99 * np.ones((1, 2))]) for u in us])
+    for (Wa, ba), (Wb, bb) in zip(a.params_, b.params_):
+        np.testing.assert_array_equal(Wa, Wb)
+        np.testing.assert_array_equal(ba, bb)
+
+
 def test_save_load_and_ltv_prior(tmp_path):
     A, B, xs, us = _linear_data(2, T=30)
     model = NeuralDynamicsModel(hidden=(4,), form="f", epochs=3, progress_bar=False).fit(xs, us)
@@ -150,7 +161,7 @@ def test_bad_input_raises_one_line_data_error():
     rng = np.random.default_rng(0)
     x, u = rng.normal(size=(20, 2)), rng.normal(size=(20, 1))
     m = NeuralDynamicsModel(hidden=(3,), epochs=2, progress_bar=False)
-    cases = [((x[:1], u[:1]), "at least 2"), ((x, u[:10]), "input samples"),
+    cases = [((x[:1], u[:1]), "at least 2"), ((x, u[:10]), "input samples"), ((x, np.vstack([u, u])), "expected 20 or 19"),
              (([x, x[:, :1]], [u, u]), "columns"), (([x], [u, u]), "input trajectories")]
     bad = x.copy()
     bad[5, 1] = np.nan

@@ -216,8 +216,9 @@ def _as_trajectories(x, u, n_x=None, n_u=None, what="x"):
             raise DataError(f"{what}[{k}]: states and inputs must be (T, n) and (T, m) arrays")
         if xi.shape[0] < 2:
             raise DataError(f"{what}[{k}]: trajectory has {xi.shape[0]} samples; at least 2 are needed")
-        if ui.shape[0] != xi.shape[0]:
-            raise DataError(f"{what}[{k}]: {xi.shape[0]} state samples but {ui.shape[0]} input samples")
+        if ui.shape[0] not in (xi.shape[0], xi.shape[0] - 1) and not (ui.shape[1] == 0 and u is None):
+            raise DataError(f"{what}[{k}]: {xi.shape[0]} state samples but {ui.shape[0]} input samples "
+                            f"(expected {xi.shape[0]} or {xi.shape[0] - 1})")
         if n_x is not None and xi.shape[1] != n_x:
             raise DataError(f"{what}[{k}]: state has {xi.shape[1]} columns, expected {n_x}")
         if n_u is not None and ui.shape[1] != n_u:
@@ -239,7 +240,7 @@ def _stack(X, U):
     off = 0
     for xi, ui in zip(X, U):
         T = xi.shape[0] - 1
-        Zs.append(np.hstack([xi[:-1], ui[:-1]]))
+        Zs.append(np.hstack([xi[:-1], ui[:T]]))
         Ys.append(xi[1:])
         nx = np.arange(off + 1, off + T + 1)
         nx[-1] = -1
@@ -416,8 +417,9 @@ class NeuralDynamicsModel:
 
     # ---------------------------------------------------------------- training
     def fit(self, x, u=None, x_val=None, u_val=None):
-        """Train on trajectories.  ``x`` (T, n) state trajectory or a list of them, ``u`` (T, m) inputs or a
-        list (None = autonomous); sample t's target is x_{t+1} of the same trajectory.  ``x_val``/``u_val``:
+        """Train on trajectories.  ``x`` (T, n) state trajectory or a list of them, ``u`` (T, m) or (T-1, m)
+        inputs or a list (None = autonomous; a last input row after the last state is ignored); sample t's
+        target is x_{t+1} of the same trajectory.  ``x_val``/``u_val``:
         validation trajectories for early stopping (the parameters with the lowest validation prediction
         error are kept; without them, those with the lowest training cost)."""
         X, U = _as_trajectories(x, u, what="x")
