@@ -167,7 +167,7 @@ def two_link_arm_plant(time_step=1e-3):
     no work): link lengths 0.5 m / 0.4 m, masses 2 / 1 kg; built by
     :func:`drake_est.systems.builders.MakeTwoLinkArmPlant`."""
     from drake_est.systems.builders import MakeTwoLinkArmPlant
-    return MakeTwoLinkArmPlant(time_step)
+    return MakeTwoLinkArmPlant(time_step, actuators=False)   # torques are applied by _simulate_arm
 
 
 def _simulate_arm(plant, u_traj, dt, fc, wall, k_wall, d_wall, q0, v0, substeps=10):

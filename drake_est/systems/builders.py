@@ -106,12 +106,14 @@ def AddJointCompliance(builder, plant, stiffness, damping, rest=None):
     return spring
 
 
-def AddTwoLinkArm(plant_or_time_step=1e-3, link_masses=(2.0, 1.0), link_lengths=(0.5, 0.4)):
+def AddTwoLinkArm(plant_or_time_step=1e-3, link_masses=(2.0, 1.0), link_lengths=(0.5, 0.4),
+                  actuators: bool = True):
     """A planar two-link arm moving in the horizontal plane (joint axes along gravity, so gravity does no
     work), built programmatically: thin rods, default lengths 0.5 m / 0.4 m, masses 2 / 1 kg (Sec. 7.8).
 
-    Takes an unfinalized ``MultibodyPlant`` or a time step [s] (a new plant is made); returns
-    ``(plant, (joint1, joint2))`` with the plant finalized."""
+    Takes an unfinalized ``MultibodyPlant`` or a time step [s] (a new plant is made); ``actuators`` adds a
+    joint torque actuator [N m] to each joint (the plant's actuation input). Returns ``(plant, (joint1,
+    joint2))`` with the plant finalized; add it to a ``DiagramBuilder`` with ``builder.AddSystem(plant)``."""
     from pydrake.math import RigidTransform
     from pydrake.multibody.plant import MultibodyPlant
     from pydrake.multibody.tree import FixedOffsetFrame, RevoluteJoint, SpatialInertia, UnitInertia
@@ -127,13 +129,16 @@ def AddTwoLinkArm(plant_or_time_step=1e-3, link_masses=(2.0, 1.0), link_lengths=
     elbow = plant.AddFrame(FixedOffsetFrame("elbow", bodies[0].body_frame(),
                                             RigidTransform([link_lengths[0], 0, 0])))
     j2 = plant.AddJoint(RevoluteJoint("joint2", elbow, bodies[1].body_frame(), [0, 0, 1]))
+    if actuators:
+        for j in (j1, j2):
+            plant.AddJointActuator(f"{j.name()}_motor", j)
     plant.Finalize()
     return plant, (j1, j2)
 
 
-def MakeTwoLinkArmPlant(time_step: float = 1e-3):
+def MakeTwoLinkArmPlant(time_step: float = 1e-3, actuators: bool = True):
     """:func:`AddTwoLinkArm` on a new plant with ``time_step`` [s]."""
-    return AddTwoLinkArm(time_step)
+    return AddTwoLinkArm(time_step, actuators=actuators)
 
 
 # ------------------------------------------------------------------------------------------- sources
