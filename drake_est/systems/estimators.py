@@ -59,6 +59,13 @@ class _GaussianFilterSystem(LeafSystem):
         self._loglik = self.DeclareVectorOutputPort("log_likelihood", 1, self._calc_ll,
                                                     prerequisites_of_calc={self.xd_ticket()})
 
+    @classmethod
+    def wrap(cls, filt, period: float):
+        """A system of this class around an existing filter object (used by ``from_system``)."""
+        self = cls.__new__(cls)
+        _GaussianFilterSystem.__init__(self, filt, period, filt.nu or 0)
+        return self
+
     @property
     def filter(self):
         """The plain filter object this system wraps."""
@@ -140,13 +147,6 @@ class ExtendedKalmanFilterSystem(_GaussianFilterSystem):
         ekf = ExtendedKalmanFilter.from_system(system, R1, R2, x0, P0, measurement=measurement, **kw)
         return cls.wrap(ekf, ekf.period)
 
-    @classmethod
-    def wrap(cls, filt, period: float):
-        """A system around an existing filter object."""
-        self = cls.__new__(cls)
-        _GaussianFilterSystem.__init__(self, filt, period, filt.nu or 0)
-        return self
-
 
 class UnscentedKalmanFilterSystem(_GaussianFilterSystem):
     """Unscented Kalman filter (sigma points, see :mod:`drake_est.estimation.ukf`) for x+ = f(x, u, t) + v,
@@ -162,7 +162,6 @@ class UnscentedKalmanFilterSystem(_GaussianFilterSystem):
         ukf = UnscentedKalmanFilter.from_system(system, R1, R2, x0, P0, measurement=measurement, **kw)
         return cls.wrap(ukf, ukf.period)
 
-    wrap = classmethod(ExtendedKalmanFilterSystem.wrap.__func__)
 
 
 for _cls in (KalmanFilterSystem, ExtendedKalmanFilterSystem, UnscentedKalmanFilterSystem):
