@@ -205,3 +205,34 @@ def test_filterpy_agrees():
     np.testing.assert_allclose(sm.filtered.x_filt, mu, atol=1e-10)
     np.testing.assert_allclose(sm.x_smooth, xs, atol=1e-10)
     np.testing.assert_allclose(sm.P_smooth, Ps, atol=1e-10)
+
+
+def test_fused_equals_numpy_on_random_models():
+    """Property: on random stable models (any nx, ny, with/without input, missing rows) the compiled loop
+    gives the numpy loop's numbers to 1e-10."""
+    hyp = pytest.importorskip("hypothesis")
+    from hypothesis import strategies as st
+
+    @hyp.settings(max_examples=10, deadline=None, derandomize=True)
+    @hyp.given(nx=st.integers(1, 5), ny=st.integers(1, 3), nu=st.integers(0, 2), seed=st.integers(0, 10_000))
+    def check(nx, ny, nu, seed):
+        rng = np.random.default_rng(seed)
+        T = 60
+        A = rng.standard_normal((nx, nx))
+        A *= 0.9 / max(1e-9, max(abs(np.linalg.eigvals(A))))
+        C = rng.standard_normal((ny, nx))
+        M1, M2 = rng.standard_normal((nx, nx)), rng.standard_normal((ny, ny))
+        R1, R2 = 0.1 * M1 @ M1.T + 0.01 * np.eye(nx), 0.1 * M2 @ M2.T + 0.05 * np.eye(ny)
+        B = rng.standard_normal((nx, nu)) if nu else None
+        u = rng.standard_normal((T, nu)) if nu else None
+        y = rng.standard_normal((T, ny))
+        y[rng.random(T) < 0.1, 0] = np.nan
+        kf = KalmanFilter(A, C, R1, R2, rng.standard_normal(nx), np.eye(nx), B=B)
+        a, b = kf.smooth(u, y, fused=True), kf.smooth(u, y, fused=False)
+        np.testing.assert_allclose(a.x_smooth, b.x_smooth, atol=1e-10, rtol=0)
+        np.testing.assert_allclose(a.P_smooth, b.P_smooth, atol=1e-10, rtol=0)
+        np.testing.assert_allclose(a.filtered.P_pred, b.filtered.P_pred, atol=1e-10, rtol=0)
+        assert abs(a.loglik - b.loglik) <= 1e-10 * max(1.0, abs(b.loglik))
+        assert a.filtered.n_missing == b.filtered.n_missing
+
+    check()
