@@ -97,14 +97,3 @@ def load_cogging_map(name: str = "cogging_measure_final_a_4_interp.npy", data=No
         step = int(m.group(1)) if m else 1
         idx = np.arange(0, COUNTS_PER_REV, step)
     return idx * (2 * np.pi / COUNTS_PER_REV), a[idx]
-
-
-def __getattr__(name):
-    # deprecation alias: the case study moved to drake_est.cases.cogging_spectral (loaders only load)
-    if name in ("cogging_case_study", "coulomb_viscous_regressors"):
-        import warnings
-        warnings.warn(f"drake_est.datasets.odrive.{name} moved to drake_est.cases.cogging_spectral",
-                      DeprecationWarning, stacklevel=2)
-        import importlib
-        return getattr(importlib.import_module("drake_est.cases.cogging_spectral"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
