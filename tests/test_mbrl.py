@@ -58,3 +58,12 @@ def test_mbrl_bad_input():
         mbrl(None, model, cost, x0, 10, model="nn")
     with pytest.raises(DataError, match="iterations"):
         mbrl(None, model, cost, x0, 10, model="ltv", iterations=0)
+
+
+@pytest.mark.slow
+def test_mbrl_ltv_with_nn_prior_runs_and_keeps_the_kl_bound():
+    from drake_est.control.cartpole_drake import CartPoleTrueSystem
+    model, cost, x0, _, lo, hi = benchmark_problem()
+    r = mbrl(CartPoleTrueSystem(), model, cost, x0, 400, model="ltv-nn", iterations=2, seed=0, lower=lo, upper=hi)
+    assert len(r.costs) == 2 and all(np.isfinite(r.costs))
+    assert all(k <= b * 1.1 + 1e-9 for k, b in zip(r.kl, r.kl_bounds))

@@ -26,7 +26,7 @@ from drake_est.control.ilqr import LinearGaussianController, LtvModel, ilqr, ilq
 from drake_est.errors import DataError
 from drake_est.progress import progress
 
-MODELS = ("true", "ltv", "lti")
+MODELS = ("true", "ltv", "lti", "ltv-nn")
 
 
 @dataclass
@@ -57,23 +57,39 @@ def fit_lti(Xs, Us):
     return W[:, :n], W[:, n:n + m], W[:, -1]
 
 
-def fit_ltv(X, U, lams=None):
-    """LTV model along one trajectory by (7.5) (order-2 random walk), lambda by maximum likelihood.
-
-    Returns (LtvModel, lambda)."""
+def fit_ltv(X, U, lams=None, prior=None, prior_cov=None):
+    """LTV model along one trajectory by (7.5) (order-2 random walk), lambda by maximum likelihood (without
+    the prior).  ``prior`` (T, n, n+m+1): prior mean of [A_t B_t c_t] (7.15) with covariance ``prior_cov``
+    (n+m+1, n+m+1) per row.  Returns (LtvModel, lambda)."""
     from drake_est.identification.ltv import ltv_select_lambda_ml, ltv_smoother
     Ub = np.hstack([U, np.ones((len(U), 1))])
     lams = np.logspace(-2, 4, 7) if lams is None else lams
     lam, _, _ = ltv_select_lambda_ml(X, Ub, lams=lams, order=2, refine=False)
-    res = ltv_smoother(X, Ub, lam, order=2)
+    res = ltv_smoother(X, Ub, lam, order=2, prior=prior, prior_cov=prior_cov)
     return LtvModel.from_result(res, bias_input=True), lam
 
 
+def nn_prior(Xs, Us, X, U, seed=0, epochs=200):
+    """Sec. 11.2 prior: a network x+ = g(x, u) + x (Ch. 8, :class:`drake_est.identification.nn.NeuralDynamicsModel`)
+    refit on all rollouts so far; returns its linearization [A_t B_t c_t] (T, n, n+m+1) along (X, U)
+    (c_t = g(x_t,u_t) + x_t - A_t x_t - B_t u_t, the affine term)."""
+    from drake_est.identification.nn import NeuralDynamicsModel
+    net = NeuralDynamicsModel(hidden=(30, 30), form="g", epochs=epochs, learning_rate=3e-3, weight_decay=1e-4,
+                              progress_bar=False, seed=seed)
+    net.fit([x for x in Xs], [np.vstack([u, u[-1:]]) for u in Us])
+    J = net.jacobian(X[:-1], U)
+    n = X.shape[1]
+    c = net.predict(X[:-1], U) - np.einsum("tij,tj->ti", J[:, :, :n], X[:-1]) - np.einsum("tij,tj->ti", J[:, :, n:], U)
+    return np.concatenate([J, c[:, :, None]], axis=2)
+
+
 def mbrl(true_system, true_model, cost, x0, T, model="ltv", iterations=20, kl_step=400.0, sigma0=1.0,
-         lower=-10.0, upper=10.0, seed=0, show_progress=False, kl_increase=2.0, kl_decrease=0.5, kl_max=1e5):
+         lower=-10.0, upper=10.0, seed=0, show_progress=False, kl_increase=2.0, kl_decrease=0.5, kl_max=1e5,
+         nn_prior_cov=1e-3):
     """Algorithm 7 on ``true_system`` (``.rollout(x0, T, policy)``), cost ``cost``, horizon ``T``.
 
-    The KL bound starts at ``kl_step`` and adapts (Levine and Abbeel 2014): multiplied by ``kl_increase``
+    ``model="ltv-nn"``: the LTV fit with the prior of a network refit on all data every iteration, prior
+    covariance ``nn_prior_cov`` / iteration (Sec. 11.2).  The KL bound starts at ``kl_step`` and adapts (Levine and Abbeel 2014): multiplied by ``kl_increase``
     (up to ``kl_max``) after an iteration that lowered the noise-free cost on the true system, by ``kl_decrease``
     after one that raised it.
 
@@ -117,6 +133,10 @@ def mbrl(true_system, true_model, cost, x0, T, model="ltv", iterations=20, kl_st
         Us.append(Ur)
         if model == "ltv":
             mdl, lam = fit_ltv(Xr, Ur)
+            out.lam.append(lam)
+        elif model == "ltv-nn":
+            pr = nn_prior(Xs, Us, Xr, Ur, seed=seed)
+            mdl, lam = fit_ltv(Xr, Ur, prior=pr, prior_cov=nn_prior_cov / len(Xs) * np.eye(pr.shape[2]))
             out.lam.append(lam)
         else:
             A, B, c = fit_lti(Xs, Us)
