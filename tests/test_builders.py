@@ -105,3 +105,14 @@ def test_joint_compliance_hook_pulls_the_arm_to_rest():
                                [-20.0 * 0.8 - 1.0, 2.0])
     with pytest.raises(DataError, match="damping"):
         AddJointCompliance(DiagramBuilder(), plant, stiffness=[1.0, 2.0], damping=[1.0])
+
+
+def test_joint_spring_damper_autodiff_gradient_is_minus_k_and_d():
+    from pydrake.autodiffutils import ExtractGradient, InitializeAutoDiff
+
+    from drake_est.systems.builders import JointSpringDamper
+    ad = JointSpringDamper([10.0, 20.0], [1.0, 0.5], [0.1, -0.2]).ToAutoDiffXd()
+    ctx = ad.CreateDefaultContext()
+    ad.get_robot_state_input_port().FixValue(ctx, InitializeAutoDiff(np.array([0.3, -0.4, 0.5, 2.0])).ravel())
+    grad = ExtractGradient(ad.get_joint_torques_output_port().Eval(ctx))
+    np.testing.assert_array_equal(grad, [[-10.0, 0.0, -1.0, 0.0], [0.0, -20.0, 0.0, -0.5]])

@@ -21,7 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from pydrake.systems.framework import LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
 
 from drake_est.errors import DataError
 
@@ -301,35 +302,47 @@ def spring_damper_torque(q, v, stiffness, damping, rest=0.0):
     return -np.asarray(stiffness) * (np.asarray(q) - rest) - np.asarray(damping) * np.asarray(v)
 
 
-class JointSpringDamper(LeafSystem):
-    """Joint compliance torque tau = -k (q - q_rest) - d v (:func:`spring_damper_torque`).
+@TemplateSystem.define("JointSpringDamper_")
+def JointSpringDamper_(T):
+    class Impl(LeafSystem_[T]):
+        """Joint compliance torque tau = -k (q - q_rest) - d v (:func:`spring_damper_torque`).
 
-    Ports: input ``robot_state`` [q rad; v rad/s]; output ``joint_torques`` [N m]."""
+        Ports: input ``robot_state`` [q rad; v rad/s]; output ``joint_torques`` [N m].
+        Scalar types float and AutoDiffXd (``ToAutoDiffXd()``), so a Diagram holding it can be linearized
+        or differentiated (iLQR)."""
 
-    def __init__(self, stiffness, damping, rest=None):
-        super().__init__()
-        self.stiffness = np.asarray(stiffness, float).ravel()
-        self.damping = np.asarray(damping, float).ravel()
-        n = self.stiffness.size
-        if self.damping.size != n:
-            raise DataError(f"damping has {self.damping.size} entries, stiffness {n}")
-        self.rest = np.zeros(n) if rest is None else np.asarray(rest, float).ravel()
-        if self.rest.size != n:
-            raise DataError(f"rest has {self.rest.size} entries, expected {n}")
-        self._n = n
-        self._state = self.DeclareVectorInputPort("robot_state", 2 * n)
-        self._torques = self.DeclareVectorOutputPort("joint_torques", n, self._calc)
+        def _construct(self, stiffness, damping, rest=None, converter=None):
+            LeafSystem_[T].__init__(self, converter)
+            self.stiffness = np.asarray(stiffness, float).ravel()
+            self.damping = np.asarray(damping, float).ravel()
+            n = self.stiffness.size
+            if self.damping.size != n:
+                raise DataError(f"damping has {self.damping.size} entries, stiffness {n}")
+            self.rest = np.zeros(n) if rest is None else np.asarray(rest, float).ravel()
+            if self.rest.size != n:
+                raise DataError(f"rest has {self.rest.size} entries, expected {n}")
+            self._n = n
+            self._state = self.DeclareVectorInputPort("robot_state", 2 * n)
+            self._torques = self.DeclareVectorOutputPort("joint_torques", n, self._calc)
 
-    def get_robot_state_input_port(self):
-        return self._state
+        def _construct_copy(self, other, converter=None):
+            Impl._construct(self, other.stiffness, other.damping, other.rest, converter=converter)
 
-    def get_joint_torques_output_port(self):
-        return self._torques
+        def get_robot_state_input_port(self):
+            return self._state
 
-    def _calc(self, context, output):
-        x = self._state.Eval(context)
-        output.SetFromVector(spring_damper_torque(x[: self._n], x[self._n:], self.stiffness,
-                                                  self.damping, self.rest))
+        def get_joint_torques_output_port(self):
+            return self._torques
+
+        def _calc(self, context, output):
+            x = self._state.Eval(context)
+            output.SetFromVector(spring_damper_torque(x[: self._n], x[self._n:], self.stiffness,
+                                                      self.damping, self.rest))
+
+    return Impl
+
+
+JointSpringDamper = JointSpringDamper_[None]
 
 
 def contract_cases():
