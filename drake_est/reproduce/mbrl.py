@@ -38,14 +38,17 @@ def _one(args):
     return kind, seed, r
 
 
-def mbrl_cartpole(out_dir, quick=False, seed=0, n_seeds=None, iterations=20, kl_step=400.0, jobs=1, nn_seeds=0,
+def mbrl_cartpole(out_dir, quick=False, seed=0, n_seeds=None, iterations=20, kl_step=400.0, jobs=None, nn_seeds=0,
                   **kw):
     """Fig. 11.1 / 11.2: cost per learning iteration (median over seeds) for true-model DDP, LTV, LTI.
 
     Acceptance (issue 14): the median LTV cost comes within 5 % of the true-model DDP cost in at most 20
-    iterations while the LTI one does not.  ``jobs`` > 1 runs seeds in worker processes."""
+    iterations while the LTI one does not.  Seeds run in ``jobs`` worker processes (default: min(4, cores))."""
     out_dir = Path(out_dir)
     plt = _plt()
+    if jobs is None:
+        import os
+        jobs = min(4, os.cpu_count() or 1)
     n_seeds = n_seeds or (3 if quick else 20)
     seeds = [seed + s for s in range(n_seeds)]
     tasks = [("true", seed, iterations, kl_step)] + [(k, s, iterations, kl_step) for k in ("ltv", "lti")
