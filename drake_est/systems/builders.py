@@ -336,8 +336,10 @@ def JointSpringDamper_(T):
 
         def _calc(self, context, output):
             x = self._state.Eval(context)
-            output.SetFromVector(spring_damper_torque(x[: self._n], x[self._n:], self.stiffness,
-                                                      self.damping, self.rest))
+            # Drake's Build() may probe the port with NaN inputs: NaN in, NaN out, without a warning
+            with np.errstate(invalid="ignore"):
+                output.SetFromVector(spring_damper_torque(x[: self._n], x[self._n:], self.stiffness,
+                                                          self.damping, self.rest))
 
     return Impl
 
