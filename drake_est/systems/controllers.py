@@ -6,7 +6,7 @@ Thin wrappers: every number comes from :mod:`drake_est.control.ilqr` / :func:`ca
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
+from pydrake.systems.framework import EventStatus, LeafSystem
 
 from drake_est.control.ilqr import IlqrOptions, ilqr
 from drake_est.errors import DataError
