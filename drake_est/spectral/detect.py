@@ -51,14 +51,18 @@ def _gram_solve(b, M0, Mc, Ms, J, jitter=1e-10):
 
 
 def fft_scan(x, y, Phi=None, f_max: float | None = None, f_min: float | None = None, oversample: float = 4.0,
-             bins_per_period: int = BINS_PER_PERIOD, max_fft: int | None = None):
-    """Least-squares periodogram with LPV regressors on a uniform grid, by FFT.
+             bins_per_period: int = BINS_PER_PERIOD, max_fft: int | None = None, method: str = "nufft"):
+    """Least-squares periodogram with LPV regressors on the automatic uniform grid, by (non-uniform) FFTs.
 
-    Samples are binned on a position grid of step ``h = 1 / (bins_per_period * f_max)`` (phase error at
-    most ``pi / bins_per_period`` at ``f_max``); the sums ``sum phi_j y exp(i w x)`` and
-    ``sum phi_i phi_j exp(2 i w x)`` then are FFTs of binned channels.  Returns ``(freqs, ess)``
-    with ``ess`` the explained sum of squares per frequency (as :func:`~drake_est.spectral.lssa.ls_scan`,
-    approximately).  Grid spacing ``1 / (oversample * span)``."""
+    The grid is ``k df`` with ``df`` about ``1 / (oversample * span)``, adjusted so that a position
+    grid of step ``h = 1 / (bins_per_period * f_max)`` has an FFT-friendly number of bins ``M = 1/(df h)``
+    (at most ``max_fft``).  ``method="nufft"`` (default): the explained sum of squares per frequency is
+    exact, every sum of the normal equations by a type-1 NUFFT (:func:`~drake_est.spectral.lssa.ls_scan`);
+    ``method="binned"``: the sums ``sum phi_j y exp(i w x)`` and ``sum phi_i phi_j exp(2 i w x)`` are FFTs
+    of the samples binned on that position grid (phase error at most ``pi / bins_per_period`` at
+    ``f_max``; approximate).  Returns ``(freqs, ess)``."""
+    if method not in ("nufft", "binned"):
+        raise DataError(f"unknown fft_scan method '{method}'; use nufft or binned")
     x = _clean_1d(x, "sample locations")
     y = _clean_1d(y, "signal")
     N = x.size
@@ -86,6 +90,8 @@ def fft_scan(x, y, Phi=None, f_max: float | None = None, f_min: float | None = N
         raise DataError(f"empty scan range: f_min {f_min} above f_max {f_max}")
     ks = np.arange(k_min, k_max + 1)
     freqs = ks * df
+    if method == "nufft":
+        return freqs, ls_scan(x, y, freqs, Phi, method="nufft")
     # conj(FFT) gives sum_b W(b) exp(+2 pi i k b / M); the e^{i w x0} factor restores absolute phase
     ph1 = np.exp(2j * np.pi * freqs * x0)
     ph2 = np.exp(4j * np.pi * freqs * x0)
@@ -208,8 +214,44 @@ class PeriodicComponents:
         return out
 
 
+class _SingleFrequencyESS:
+    """Explained sum of squares of ``r`` by the 2J LPV regressors of one frequency (Eq. (10.5) for one
+    frequency), by direct sums over the samples: what the off-grid refinement maximizes.  Streams over
+    the basis pairs, so memory stays O(N) for long logs."""
+
+    def __init__(self, x, r, Phi, jitter: float = 1e-10):
+        self.xs = x - 0.5 * (float(np.min(x)) + float(np.max(x)))     # shift invariant, better rounded
+        self.Py = Phi * r[:, None]
+        self.Phi = Phi
+        J = Phi.shape[1]
+        self.iu = np.triu_indices(J)
+        self.m0 = np.array([Phi[:, i] @ Phi[:, j] for i, j in zip(*self.iu)])
+        self.jitter = jitter
+
+    def __call__(self, f: float) -> float:
+        from drake_est.spectral.nufft import explained_ss, gram_blocks, sym_blocks
+
+        a = (2 * np.pi * f) * self.xs
+        c, s = np.cos(a), np.sin(a)
+        b = np.r_[self.Py.T @ c, self.Py.T @ s]
+        c2 = c * c - s * s
+        s2 = 2.0 * c * s
+        J = self.Phi.shape[1]
+        mc = np.empty(self.m0.size)
+        ms = np.empty(self.m0.size)
+        for k, (i, j) in enumerate(zip(*self.iu)):
+            if self.m0[k] == 0.0 and i != j:          # disjoint supports (sign split)
+                mc[k] = ms[k] = 0.0
+                continue
+            w = self.Phi[:, i] * self.Phi[:, j]
+            mc[k], ms[k] = w @ c2, w @ s2
+        iu = self.iu
+        G = gram_blocks(sym_blocks(self.m0, iu, J), sym_blocks(mc[None], iu, J), sym_blocks(ms[None], iu, J))
+        return float(explained_ss(G, b[None], self.jitter)[0])
+
+
 def _single_ess(x, r, Phi, f):
-    return float(ls_scan(x, r, [f], Phi)[0])
+    return _SingleFrequencyESS(x, r, Phi)(f)
 
 
 def default_schedule_basis(schedule, n_basis: int, sign_split=None) -> ScheduleBasis:
@@ -312,7 +354,8 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
         f = float(fr[k])
         if refine:
             lo, hi = max(f - step, 1e-12), f + step
-            opt = scipy.optimize.minimize_scalar(lambda ff: -_single_ess(x, r, Phi, ff), bounds=(lo, hi),
+            ess1 = _SingleFrequencyESS(x, r, Phi)
+            opt = scipy.optimize.minimize_scalar(lambda ff: -ess1(ff), bounds=(lo, hi),
                                                  method="bounded", options={"xatol": 1e-7 * max(f, 1e-9)})
             if -opt.fun >= ess[k]:
                 f = float(opt.x)

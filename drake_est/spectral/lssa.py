@@ -17,8 +17,9 @@ Functions here:
   raises :class:`DataError` for a grid above it.
 * :func:`ls_scan` -- the least-squares periodogram: for every frequency of a grid
   separately, the variance of ``y`` explained by ``[phi(v) cos(omega x), phi(v) sin(omega x)]``
-  (generalized Lomb-Scargle when ``phi == 1``), computed for the whole grid with
-  matrix products (cost O(N O J^2)).
+  (generalized Lomb-Scargle when ``phi == 1``; ``fit_mean=True`` adds a floating offset), every
+  sum of its normal equations by a non-uniform FFT (:mod:`drake_est.spectral.nufft`,
+  O(N log(1/eps) + O log O)) or, for tiny problems and as the reference, explicitly (O(N O J^2)).
 * :func:`lssa` -- the joint least-squares fit (10.5) of all grid frequencies at once,
   i.e. :class:`drake_est.spectral.lpv.LPVSpectrum` with the constant basis.
 """
@@ -115,69 +116,170 @@ def _pair_products(Phi: np.ndarray):
     return Phi[:, iu[0]] * Phi[:, iu[1]], iu
 
 
-def ls_scan(x, y, freqs, Phi=None, chunk: int | None = None, jitter: float = 1e-10) -> np.ndarray:
-    """Explained sum of squares of ``y`` by each grid frequency on its own.
+def _offset_gram(G, b, N: int, sum_y: float, T: np.ndarray):
+    """Extend per-frequency normal equations (O, 2J, 2J), (O, 2J) by a leading constant column
+    (the floating offset): ``G[0, 0] = N``, ``G[0, 1:] = [Re T, Im T]`` with ``T_j = sum phi_j exp(i w x)``."""
+    O, d = b.shape
+    Ge = np.empty((O, d + 1, d + 1))
+    Ge[:, 1:, 1:] = G
+    Ge[:, 0, 0] = N
+    cross = np.concatenate([T.real, T.imag], axis=1)
+    Ge[:, 0, 1:] = cross
+    Ge[:, 1:, 0] = cross
+    be = np.empty((O, d + 1))
+    be[:, 0] = sum_y
+    be[:, 1:] = b
+    return Ge, be
+
+
+def _scan_system(xs, y, freqs, Phi, fit_mean: bool, sums, one_at_a_time: bool = False, show=None):
+    """Per-frequency normal equations (G (O, d, d), b (O, d)) of the LPV periodogram from trigonometric
+    sums ``sums(x, weights (K, N), freqs, harmonic) -> (K, O)`` (:func:`~drake_est.spectral.nufft.trig_sums`
+    or its direct reference); ``xs`` centred locations.  ``one_at_a_time`` builds and transforms one
+    weight vector at a time (memory O(N) for long logs); ``show(total)`` wraps the loop in a progress bar."""
+    from drake_est.spectral.nufft import gram_blocks, sym_blocks
+
+    N, J = Phi.shape
+    iu = np.triu_indices(J)
+    jobs = [(1.0, ("b", j)) for j in range(J)]
+    if fit_mean:
+        jobs += [(1.0, ("t", j)) for j in range(J)]
+    jobs += [(2.0, ("m", c)) for c in range(iu[0].size)]
+
+    def weight(key):
+        kind, k = key
+        if kind == "b":
+            return Phi[:, k] * y
+        if kind == "t":
+            return Phi[:, k]
+        return Phi[:, iu[0][k]] * Phi[:, iu[1][k]]
+
+    O = freqs.size
+    S = {}
+    m0 = np.zeros(iu[0].size)
+    if one_at_a_time:
+        it = range(len(jobs)) if show is None else show(len(jobs))
+        for q in it:
+            h, key = jobs[q]
+            w = weight(key)
+            if key[0] == "m":
+                m0[key[1]] = w.sum()
+                if not np.any(w):          # disjoint supports (sign split): no sum needed
+                    S[key] = np.zeros(O, dtype=complex)
+                    continue
+            S[key] = sums(xs, w[None, :], freqs, h)[0]
+    else:
+        for h in (1.0, 2.0):
+            keys = [k for hh, k in jobs if hh == h]
+            W = np.array([weight(k) for k in keys])
+            R = sums(xs, W, freqs, h)
+            for k, row, w in zip(keys, R, W):
+                S[k] = row
+                if k[0] == "m":
+                    m0[k[1]] = w.sum()
+    S2 = np.array([S[("m", c)] for c in range(iu[0].size)])           # (P, O)
+    M0 = sym_blocks(m0, iu, J)
+    G = gram_blocks(M0, sym_blocks(S2.real.T, iu, J), sym_blocks(S2.imag.T, iu, J))
+    bj = np.array([S[("b", j)] for j in range(J)]).T
+    b = np.concatenate([bj.real, bj.imag], axis=1)
+    if fit_mean:
+        T = np.array([S[("t", j)] for j in range(J)]).T
+        G, b = _offset_gram(G, b, N, float(np.sum(y)), T)
+    return G, b
+
+
+def ls_scan(x, y, freqs, Phi=None, chunk: int | None = None, jitter: float = 1e-10, fit_mean: bool = False,
+            method: str = "auto", eps: float | None = None, nthreads: int | None = None,
+            exact_cond: float | None = None) -> np.ndarray:
+    """Explained sum of squares of ``y`` by each grid frequency on its own (least-squares periodogram).
 
     For every ``f`` in ``freqs`` (cycles per unit x) the least-squares fit of ``y`` on the
-    2J columns ``[Phi cos(2 pi f x), Phi sin(2 pi f x)]`` is formed from matrix products
-    (no loop over samples) and its explained sum of squares ``b^T G^-1 b`` returned.
-    With ``Phi = None`` (one constant column) this is the generalized Lomb-Scargle periodogram
-    without offset.  Divide by ``sum(y**2)`` for the explained fraction."""
+    2J columns ``[Phi cos(2 pi f x), Phi sin(2 pi f x)]`` (the LPV regressors of Eq. (10.4) for one
+    frequency; ``Phi = None``: one constant column, the generalized Lomb-Scargle periodogram without
+    offset, Eq. (10.1)) and its explained sum of squares ``b^T G^-1 b`` is returned.  Divide by
+    ``sum(y**2)`` for the explained fraction (astropy's ``LombScargle(fit_mean=False,
+    center_data=False)`` "standard" power).
+
+    ``fit_mean=True`` adds a floating offset (a constant column) to every frequency's model and
+    returns the sum of squares explained beyond the mean, ``sum((y - mean y)**2) - RSS(f)``
+    (astropy's ``fit_mean=True`` power times ``sum((y - mean y)**2)``).
+
+    ``method``: ``"nufft"`` -- every sum of the normal equations by a non-uniform FFT
+    (:mod:`drake_est.spectral.nufft`, O(N log(1/eps) + F log F), tolerance ``eps``, default 1e-13);
+    ``"direct"`` -- explicit cosines and sines (O(N F), the reference); ``"auto"`` -- direct when
+    ``N F <= 2e6`` or ``F < 8``, NUFFT otherwise.  With NUFFT, frequencies whose 2J x 2J normal
+    equations have condition number above ``exact_cond`` (default ``1e-10 / eps``: near 0 and near a
+    regular-sampling Nyquist rate the sine column vanishes and the NUFFT error would be amplified) are
+    recomputed by the direct sums, so the result equals the direct path to a relative ~1e-9."""
+    from drake_est.spectral.nufft import DEFAULT_EPS, explained_ss, trig_sums, trig_sums_direct
+
     x = _clean_1d(x, "sample locations")
     y = _clean_1d(y, "signal")
     if y.size != x.size:
         raise DataError(f"signal has {y.size} samples, sample locations {x.size}")
-    freqs = np.atleast_1d(np.asarray(freqs, dtype=float))
+    freqs = np.atleast_1d(np.asarray(freqs, dtype=float)).ravel()
+    if not np.all(np.isfinite(freqs)):
+        raise DataError("frequency grid contains NaN/inf")
+    if method not in ("auto", "nufft", "direct"):
+        raise DataError(f"unknown ls_scan method '{method}'; use auto, nufft or direct")
     N = x.size
     if Phi is None:
         Phi = np.ones((N, 1))
     Phi = np.asarray(Phi, dtype=float)
-    J = Phi.shape[1]
-    PP, iu = _pair_products(Phi)
-    m0 = PP.sum(axis=0)
-    Py = Phi * y[:, None]
-    if chunk is None:
-        chunk = max(8, int(4e6 // max(N, 1)))
-    out = np.empty(freqs.size)
-    w_all = 2 * np.pi * freqs
-    for s in range(0, freqs.size, chunk):
-        w = w_all[s:s + chunk]
-        arg = np.outer(x, w)
-        C = np.cos(arg)
-        S = np.sin(arg)
-        bc = Py.T @ C                      # (J, O)
-        bs = Py.T @ S
-        C2 = C * C - S * S                 # cos(2 w x)
-        S2 = 2.0 * C * S                   # sin(2 w x)
-        mc = PP.T @ C2                     # (J(J+1)/2, O)
-        ms = PP.T @ S2
-        O = w.size
-        G = np.empty((O, 2 * J, 2 * J))
-        half0 = np.zeros((J, J))
-        half0[iu] = m0
-        M0 = half0 + np.triu(half0, 1).T
-        Mc = np.zeros((O, J, J))
-        Ms = np.zeros((O, J, J))
-        Mc[:, iu[0], iu[1]] = mc.T
-        Mc[:, iu[1], iu[0]] = mc.T
-        Ms[:, iu[0], iu[1]] = ms.T
-        Ms[:, iu[1], iu[0]] = ms.T
-        G[:, :J, :J] = 0.5 * (M0[None] + Mc)
-        G[:, J:, J:] = 0.5 * (M0[None] - Mc)
-        G[:, :J, J:] = 0.5 * Ms
-        G[:, J:, :J] = 0.5 * Ms
-        b = np.concatenate([bc.T, bs.T], axis=1)  # (O, 2J)
-        scale = np.trace(G, axis1=1, axis2=2) / (2 * J)
-        G = G + (jitter * np.maximum(scale, 1e-300))[:, None, None] * np.eye(2 * J)[None]
-        sol = np.linalg.solve(G, b[..., None])[..., 0]
-        out[s:s + chunk] = np.einsum("oi,oi->o", b, sol)
-    return out
+    if Phi.ndim != 2 or Phi.shape[0] != N:
+        raise DataError(f"basis Phi must have shape ({N}, J), got {Phi.shape}")
+    if not np.all(np.isfinite(Phi)):
+        raise DataError("basis Phi contains NaN/inf")
+    eps = DEFAULT_EPS if eps is None else float(eps)
+    if method == "auto":
+        method = "direct" if (N * freqs.size <= 2e6 or freqs.size < 8) else "nufft"
+    xs = x - 0.5 * (float(np.min(x)) + float(np.max(x)))     # the periodogram is shift invariant
+    chunk_elems = 4e6 if chunk is None else float(chunk) * N
+
+    def direct(xx, c, f, h):
+        return trig_sums_direct(xx, c, f, h, chunk_elems=int(chunk_elems))
+
+    if fit_mean:
+        y = y - np.mean(y)       # with the offset in every model, centring changes no residual
+    if method == "direct":
+        G, b = _scan_system(xs, y, freqs, Phi, fit_mean, direct)
+        return explained_ss(G, b, jitter)
+
+    def fast(xx, c, f, h):
+        return trig_sums(xx, c, f, h, eps=eps, nthreads=nthreads, center=False)
+
+    G, b = _scan_system(xs, y, freqs, Phi, fit_mean, fast, one_at_a_time=True,
+                        show=_progress_if_slow(N, freqs.size))
+    bad = _ill_conditioned(G, Phi, fit_mean, 1e-10 / eps if exact_cond is None else float(exact_cond))
+    if bad.size:
+        Gd, bd = _scan_system(xs, y, freqs[bad], Phi, fit_mean, direct)
+        G[bad], b[bad] = Gd, bd
+    return explained_ss(G, b, jitter)
 
 
-def lssa(x, y, freqs, lam: float = 0.0):
-    """Joint least-squares spectrum (10.5) of ``y`` sampled at arbitrary ``x`` on the grid ``freqs``
-    (cycles per unit x).  Returns a fitted :class:`~drake_est.spectral.lpv.LPVSpectrum` with one
-    constant basis function; its ``.coef[:, 0]`` are the complex Fourier coefficients ``k``."""
-    from drake_est.spectral.lpv import LPVSpectrum
+def _ill_conditioned(G, Phi, fit_mean: bool, limit: float) -> np.ndarray:
+    """Indices of frequencies whose normal equations are worse conditioned than ``limit`` times the
+    frequency-independent reference ``diag([N,] M0/2, M0/2)`` (what ``G`` tends to away from 0 and
+    Nyquist-like frequencies): there the NUFFT error of the ``cos(2 w x)`` sums would be amplified."""
+    M0 = Phi.T @ Phi
+    ref = np.linalg.eigvalsh(0.5 * M0)
+    lo, hi = ref[0], ref[-1]
+    if fit_mean:
+        lo, hi = min(lo, Phi.shape[0]), max(hi, Phi.shape[0])
+    ref_cond = hi / max(lo, 1e-300)
+    ev = np.linalg.eigvalsh(G)
+    return np.flatnonzero(ev[:, -1] > limit * ref_cond * np.maximum(ev[:, 0], 0.0))
 
-    return LPVSpectrum(freqs, n_basis=1, lam=lam).fit(x, y)
+
+def _progress_if_slow(N: int, F: int, seconds_per_point: float = 1.5e-7):
+    """A progress-bar factory for the NUFFT sums when they are expected to take more than a second
+    (about ``seconds_per_point`` per sample and transform at tolerance 1e-13, one core), else None."""
+    from drake_est.progress import progress
+
+    def show(total: int):
+        if total * (N * seconds_per_point + F * 1e-7) <= 1.0:
+            return range(total)
+        return progress(range(total), desc=f"NUFFT periodogram ({N} samples, {F} frequencies)", total=total)
+
+    return show
+

@@ -1,0 +1,114 @@
+"""NUFFT engine of the least-squares / LPV periodogram (issue 20): equals the direct sums."""
+import numpy as np
+import pytest
+
+from drake_est.errors import DataError
+from drake_est.spectral.basis import ScheduleBasis
+from drake_est.spectral.detect import _SingleFrequencyESS, fft_scan
+from drake_est.spectral.lssa import ls_scan
+from drake_est.spectral.nufft import trig_sums, trig_sums_direct, uniform_grid_params
+
+TOL = 1e-9
+
+
+def _rel(a, b):
+    return float(np.max(np.abs(a - b) / np.abs(b)))
+
+
+@pytest.fixture(scope="module")
+def data():
+    rng = np.random.default_rng(3)
+    N = 2500
+    x = np.sort(rng.uniform(10.0, 60.0, N))          # offset on purpose: centring is internal
+    v = rng.uniform(-1, 1, N)
+    y = (1 + v) * np.cos(2 * np.pi * 3.3 * x + 0.4) + 0.3 * rng.standard_normal(N) + 0.5
+    return x, y, v
+
+
+def _phi(v, J, split):
+    return np.ones((v.size, 1)) if J == 1 else ScheduleBasis.from_data(v, J, sign_split=split)(v)
+
+
+@pytest.mark.parametrize("J,split", [(1, False), (4, False), (4, True)])
+@pytest.mark.parametrize("fit_mean", [False, True])
+@pytest.mark.parametrize("grid", ["uniform", "random"])
+def test_nufft_equals_direct(data, J, split, fit_mean, grid):
+    x, y, v = data
+    rng = np.random.default_rng(1)
+    f = 0.03 + 0.007 * np.arange(800) if grid == "uniform" else rng.uniform(0.0, 12.0, 400)
+    Phi = _phi(v, J, split)
+    d = ls_scan(x, y, f, Phi, method="direct", fit_mean=fit_mean)
+    n = ls_scan(x, y, f, Phi, method="nufft", fit_mean=fit_mean)
+    assert _rel(n, d) < TOL
+    # the periodogram really depends on the model: the offset changes it
+    other = ls_scan(x, y, f, Phi, method="direct", fit_mean=not fit_mean)
+    assert _rel(other, d) > 1e-3
+
+
+def test_fit_mean_is_explained_beyond_the_mean(data):
+    x, y, _ = data
+    f = np.array([0.5, 3.3, 7.1])
+    ess = ls_scan(x, y, f, fit_mean=True, method="direct")
+    for k, fk in enumerate(f):
+        A = np.column_stack([np.ones_like(x), np.cos(2 * np.pi * fk * x), np.sin(2 * np.pi * fk * x)])
+        r = y - A @ np.linalg.lstsq(A, y, rcond=None)[0]
+        assert abs(ess[k] - (np.sum((y - y.mean()) ** 2) - r @ r)) < 1e-8 * ess[k]
+
+
+def test_edge_frequencies_match_direct():
+    """f = 0, tiny f, and exactly/near the Nyquist rate of regular sampling: the normal equations are
+    (nearly) singular; the NUFFT path recomputes them directly, agreeing to the conditioning limit."""
+    rng = np.random.default_rng(0)
+    N = 3000
+    x = np.arange(N) * 0.01                       # regular: Nyquist 50
+    y = np.cos(2 * np.pi * 7.0 * x) + 0.2 * rng.standard_normal(N) + 0.3
+    f = np.r_[0.0, 1e-7, 1e-4, np.linspace(0.05, 49.9, 400), 50.0 - 1e-6, 50.0]
+    for fit_mean in (False, True):
+        d = ls_scan(x, y, f, method="direct", fit_mean=fit_mean)
+        n = ls_scan(x, y, f, method="nufft", fit_mean=fit_mean)
+        assert np.all(np.isfinite(n))
+        inner = slice(3, -2)
+        assert _rel(n[inner], d[inner]) < TOL
+        # edges: the same handling (same jitter, same direct sums) -> equal up to rounding amplified
+        # by the (huge) condition number there
+        assert np.allclose(n, d, rtol=1e-6, atol=1e-9 * np.max(d))
+
+
+def test_auto_switch_and_fft_scan_exact(data):
+    x, y, v = data
+    Phi = _phi(v, 4, True)
+    f = np.linspace(0.05, 10, 50)
+    # tiny: auto = direct (identical), large: auto = nufft (equal to 1e-9)
+    assert np.array_equal(ls_scan(x, y, f, Phi), ls_scan(x, y, f, Phi, method="direct"))
+    fr, ess = fft_scan(x, y, Phi, f_max=12.0, f_min=0.05)
+    assert fr.size > 500
+    assert _rel(ess, ls_scan(x, y, fr, Phi, method="direct")) < TOL
+    # the legacy binned scan is only approximate
+    _, binned = fft_scan(x, y, Phi, f_max=12.0, f_min=0.05, method="binned")
+    assert _rel(binned, ess) > 1e-6
+    one = _SingleFrequencyESS(x, y, Phi)
+    for k in (3, 200):
+        assert abs(one(fr[k]) - ess[k]) < 1e-9 * ess[k]
+
+
+def test_trig_sums_uniform_shift_and_type3():
+    rng = np.random.default_rng(5)
+    x = rng.uniform(-3, 40, 2000)
+    c = rng.standard_normal((2, 2000)) + 1j * rng.standard_normal((2, 2000))
+    for f in (1.5 + 0.01 * np.arange(501), 1.5 + 0.01 * np.arange(500), rng.uniform(0, 8, 300)):
+        for h in (1.0, 2.0):
+            ref = trig_sums_direct(x, c, f, h)
+            got = trig_sums(x, c, f, h)
+            assert np.max(np.abs(got - ref)) < 1e-11 * np.max(np.abs(ref))
+    assert uniform_grid_params(np.linspace(0.1, 3, 77)) is not None
+    assert uniform_grid_params(np.r_[0.1, 0.2, 0.31]) is None
+
+
+def test_bad_input_is_data_error(data):
+    x, y, _ = data
+    with pytest.raises(DataError, match="method"):
+        ls_scan(x, y, [1.0], method="fast")
+    with pytest.raises(DataError, match="Phi"):
+        ls_scan(x, y, [1.0], Phi=np.ones((3, 2)))
+    with pytest.raises(DataError, match="frequency grid"):
+        ls_scan(x, y, [1.0, np.nan])
