@@ -40,11 +40,12 @@ from __future__ import annotations
 # The implementation is split by idea; this module re-exports every name (public and private) so that
 # ``from drake_est.identification.ltv import X`` and ``ltv.X`` keep working.
 from drake_est.identification.ltv_common import (  # noqa: F401
-    LtvResult, TVRegressionResult, _Lambda, _as_regression, _as_state_space, _check_lam, _finite, _gram,
-    _nullspace_basis, _poly, _reg_bands, _to_ltv, check_identifiable,
+    LtvResult, TVRegressionResult, _Lambda, _apply_D, _apply_DT, _as_regression, _as_state_space, _check_lam,
+    _cluster_times, _finite, _gram, _nullspace_basis, _poly, _reg_bands, _to_ltv, change_points,
+    check_identifiable,
 )
 from drake_est.identification.ltv_smoother import (  # noqa: F401
-    _Raw, _apply_D, _apply_DT, _prior_arrays, _smooth_core, _smooth_rts, _tv_smooth, ltv_smoother,
+    _LOG2PI, _Raw, _prior_arrays, _smooth_core, _smooth_rts, _tv_smooth, ltv_smoother,
     tv_regression_smoother,
 )
 from drake_est.identification.ltv_lambda import (  # noqa: F401
@@ -55,8 +56,8 @@ from drake_est.identification.ltv_lasso import (  # noqa: F401
     _gl_solve, _group_lasso_cost, _nrm, ltv_group_lasso, tv_regression_group_lasso,
 )
 from drake_est.identification.ltv_segments import (  # noqa: F401
-    SegmentsResult, _SegmentCost, _cluster_times, _dp, _refine, _segment_bounds, _segments, change_points,
-    ltv_refine_with_knots, ltv_segments, refine_with_knots, segments_brute_force, tv_regression_segments,
+    SegmentsResult, _SegmentCost, _dp, _refine, _segment_bounds, _segments, ltv_refine_with_knots,
+    ltv_segments, refine_with_knots, segments_brute_force, tv_regression_segments,
 )
 from drake_est.identification.ltv_reference import (  # noqa: F401
     _mp_program, _mp_solve, ltv_group_lasso_reference, ltv_qp_reference, tv_regression_group_lasso_reference,

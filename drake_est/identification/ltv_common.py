@@ -207,7 +207,6 @@ class TVRegressionResult:
     info: dict = field(default_factory=dict)
 
     def change_points(self, **kw):
-        from drake_est.identification.ltv_segments import change_points   # (segments import this module)
         return change_points(self.k, **kw)
 
 
@@ -254,3 +253,71 @@ def _to_ltv(kk, cov_row, n, m, cost, lam, loglik=None, sigma2=None, info=None):
         cov = np.einsum("ij,tab->tiajb", np.eye(n), cov_row).reshape(T, n * (n + m), n * (n + m))
     return LtvResult(AB[:, :, :n].copy(), AB[:, :, n:].copy(), AB.reshape(T, -1).copy(), cov, cov_row,
                      cost, lam, loglik, sigma2, info=info or {})
+
+
+# =============================================================================================
+# difference operators and change-point detection on a parameter trajectory (used by the results above,
+# the smoothers and the segmentation)
+# =============================================================================================
+def _apply_D(c, k):
+    """(P(z) k)_t = sum_j c_j k_{t+j}, t = 0..T-d-1."""
+    d = c.size - 1
+    T = k.shape[0]
+    out = c[0] * k[: T - d]
+    for j in range(1, d + 1):
+        out = out + c[j] * k[j: T - d + j]
+    return out
+
+
+def _apply_DT(c, z, T):
+    d = c.size - 1
+    out = np.zeros((T,) + z.shape[1:])
+    for j in range(d + 1):
+        out[j: T - d + j] += c[j] * z
+    return out
+
+
+def _cluster_times(idx, w, gap=1):
+    """Group consecutive indices (distance <= gap) into events; each event at its largest weight."""
+    idx = np.asarray(idx, int)
+    if idx.size == 0:
+        return []
+    out, start = [], 0
+    for i in range(1, idx.size + 1):
+        if i == idx.size or idx[i] - idx[i - 1] > gap:
+            j = start + int(np.argmax(w[start:i]))
+            out.append(int(idx[j]))
+            start = i
+    return out
+
+
+def change_points(k, n=None, threshold=None, rel_threshold=0.1, min_separation=1, order=1):
+    """Detected change times of a (piecewise constant) parameter trajectory k (T, ...).
+
+    a_t = ||k_t - k_{t-1}||_2 (``order=1``) or the second difference (``order=2``, a slope change at t);
+    returns sorted indices t (the first sample of the new segment).  ``n``: return the n largest
+    separated events; otherwise all events with a_t > ``threshold`` (default ``rel_threshold``
+    times the largest a_t).  Adjacent indices closer than ``min_separation`` form one event located
+    at its largest a_t."""
+    k = np.asarray(k, float)
+    k = k.reshape(k.shape[0], -1)
+    if k.shape[0] < order + 1:
+        return []
+    c = _poly(order)
+    a = np.sqrt(np.sum(_apply_D(c, k) ** 2, axis=1))
+    off = order if order == 1 else 1
+    if a.max(initial=0.0) <= 0:
+        return []
+    if n is not None:
+        chosen = []
+        aa = a.copy()
+        for _ in range(int(n)):
+            j = int(np.argmax(aa))
+            if aa[j] <= 0:
+                break
+            chosen.append(j + off)
+            aa[max(0, j - min_separation):j + min_separation + 1] = -np.inf
+        return sorted(chosen)
+    thr = rel_threshold * a.max() if threshold is None else float(threshold)
+    idx = np.flatnonzero(a > thr)
+    return sorted(_cluster_times(idx + off, a[idx], gap=min_separation))

@@ -11,9 +11,9 @@ import numpy as np
 
 from drake_est.errors import DataError, IdentifiabilityError
 from drake_est.identification.ltv_banded import banded_lower
-from drake_est.identification.ltv_common import _as_regression, _as_state_space, _check_lam, _poly, _reg_bands, _to_ltv, check_identifiable
-from drake_est.identification.ltv_smoother import _apply_D, _apply_DT
-from drake_est.identification.ltv_segments import _cluster_times, change_points
+from drake_est.identification.ltv_common import (_apply_D, _apply_DT, _as_regression, _as_state_space, _check_lam,
+                                                 _cluster_times, _poly, _reg_bands, _to_ltv, change_points,
+                                                 check_identifiable)
 
 
 # =============================================================================================

@@ -11,58 +11,12 @@ import numpy as np
 
 from drake_est.errors import DataError, IdentifiabilityError
 from drake_est.identification.ltv_common import _as_regression, _as_state_space, _poly, _to_ltv, check_identifiable
-from drake_est.identification.ltv_smoother import _apply_D, _tv_smooth
+from drake_est.identification.ltv_smoother import _tv_smooth
 
 
 # =============================================================================================
 # change points, knots and the two-step refinement (7.10)
 # =============================================================================================
-def _cluster_times(idx, w, gap=1):
-    """Group consecutive indices (distance <= gap) into events; each event at its largest weight."""
-    idx = np.asarray(idx, int)
-    if idx.size == 0:
-        return []
-    out, start = [], 0
-    for i in range(1, idx.size + 1):
-        if i == idx.size or idx[i] - idx[i - 1] > gap:
-            j = start + int(np.argmax(w[start:i]))
-            out.append(int(idx[j]))
-            start = i
-    return out
-
-
-def change_points(k, n=None, threshold=None, rel_threshold=0.1, min_separation=1, order=1):
-    """Detected change times of a (piecewise constant) parameter trajectory k (T, ...).
-
-    a_t = ||k_t - k_{t-1}||_2 (``order=1``) or the second difference (``order=2``, a slope change at t);
-    returns sorted indices t (the first sample of the new segment).  ``n``: return the n largest
-    separated events; otherwise all events with a_t > ``threshold`` (default ``rel_threshold``
-    times the largest a_t).  Adjacent indices closer than ``min_separation`` form one event located
-    at its largest a_t."""
-    k = np.asarray(k, float)
-    k = k.reshape(k.shape[0], -1)
-    if k.shape[0] < order + 1:
-        return []
-    c = _poly(order)
-    a = np.sqrt(np.sum(_apply_D(c, k) ** 2, axis=1))
-    off = order if order == 1 else 1
-    if a.max(initial=0.0) <= 0:
-        return []
-    if n is not None:
-        chosen = []
-        aa = a.copy()
-        for _ in range(int(n)):
-            j = int(np.argmax(aa))
-            if aa[j] <= 0:
-                break
-            chosen.append(j + off)
-            aa[max(0, j - min_separation):j + min_separation + 1] = -np.inf
-        return sorted(chosen)
-    thr = rel_threshold * a.max() if threshold is None else float(threshold)
-    idx = np.flatnonzero(a > thr)
-    return sorted(_cluster_times(idx + off, a[idx], gap=min_separation))
-
-
 def _segment_bounds(knots, T):
     b = [0] + sorted(int(t) for t in knots) + [T]
     if any(b[i + 1] <= b[i] for i in range(len(b) - 1)) or b[0] < 0 or b[-1] > T:

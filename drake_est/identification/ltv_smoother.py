@@ -11,7 +11,9 @@ import numpy as np
 
 from drake_est.errors import DataError, IdentifiabilityError
 from drake_est.identification.ltv_banded import block_tridiag_solve, group_blocks, ungroup
-from drake_est.identification.ltv_common import TVRegressionResult, _Lambda, _as_regression, _as_state_space, _check_lam, _finite, _gram, _poly, _reg_bands, _to_ltv, check_identifiable
+from drake_est.identification.ltv_common import (TVRegressionResult, _Lambda, _apply_D, _as_regression,
+                                                 _as_state_space, _check_lam, _finite, _gram, _poly, _reg_bands,
+                                                 _to_ltv, check_identifiable)
 
 _LOG2PI = np.log(2.0 * np.pi)
 
@@ -101,24 +103,6 @@ def _smooth_core(G, Bt, yy, N, lam, c, Lam, prior=None, sigma_e=None, want_cov=T
                   + r * ((T * p - d * p) / 2.0 * np.log(lam ** 2) + 0.5 * ld_reg - 0.5 * logdet))
     cov = s2 * S if S is not None else None
     return k, cov, J + s2_fixed * pr if prior is not None else J, loglik, s2
-
-
-def _apply_D(c, k):
-    """(P(z) k)_t = sum_j c_j k_{t+j}, t = 0..T-d-1."""
-    d = c.size - 1
-    T = k.shape[0]
-    out = c[0] * k[: T - d]
-    for j in range(1, d + 1):
-        out = out + c[j] * k[j: T - d + j]
-    return out
-
-
-def _apply_DT(c, z, T):
-    d = c.size - 1
-    out = np.zeros((T,) + z.shape[1:])
-    for j in range(d + 1):
-        out[j: T - d + j] += c[j] * z
-    return out
 
 
 def _smooth_rts(Phi, Y, lam, c, Lam, prior=None, sigma_e=None, p0=None):
