@@ -230,10 +230,11 @@ def contract_cases():
     from pydrake.systems.framework import DiagramBuilder
 
     from drake_est.calibration.ft import simulate_ft
-    from drake_est.robots import RobotModel, add_irb140
+    from drake_est.robots import RobotModel
+    from drake_est.systems.builders import AddIrb140Plant
     from drake_est.systems.contract import ContractCase
 
-    _, plant, _, _ = add_irb140(DiagramBuilder())
+    plant = AddIrb140Plant(DiagramBuilder())
     q = np.array([0.3, -0.2, 0.4, 0.5, 0.7, -0.3])
     x = np.r_[q, np.zeros(6)]
     X_FS = RigidTransform(RollPitchYaw(0.1, -0.2, 0.3), [0.01, 0.02, 0.05]).GetAsMatrix4()
