@@ -166,7 +166,8 @@ class ParticleFilter(Filter):
             return hit[1], hit[2]
         K = self.chunk
         rng = np.random.default_rng([self.seed, 1, c])
-        z = rng.standard_normal((K, self.N, self.nx))
+        # float32 normals: ~1.5x cheaper to draw, ample for process noise (used as float64 by every path)
+        z = rng.standard_normal((K, self.N, self.nx), dtype=np.float32)
         uu = rng.random(K)
         self._chunk_cache["c"] = (c, z, uu)
         return z, uu
@@ -503,7 +504,6 @@ class GaussianParticleFilter(ParticleFilter):
                 k = t % K
                 if k == 0:
                     z, uu = self._draws(t // K)
-                    V = self._scaled_noise(z)
                 jit.moments(x, w, covariances, xp[t], Pp[t] if covariances else Pdummy)
                 ut = None if u is None else u[t]
                 status = -1
@@ -545,9 +545,13 @@ class GaussianParticleFilter(ParticleFilter):
                     if getattr(xn, "shape", None) != (N, nx):
                         raise DataError(f"f returned shape {np.shape(xn)}, expected {(N, nx)} (transition)")
                     shape_ok = not missing[t]
-                x = np.add(xn, V[k], out=xbuf)          # both buffers are the filter's own arrays
+                if not (xn.flags.c_contiguous and xn.dtype == np.float64):
+                    xn = np.ascontiguousarray(xn, dtype=float)
+                # x = f(x) + L1 z in one compiled pass (both buffers are the filter's own arrays)
+                finite = jit.propagate(xn, z[k], self.L1, self._diag1, xbuf)
+                x = xbuf
                 xbuf = x_old
-                if not np.isfinite(np.add.reduce(x, axis=None)):
+                if not finite:
                     bad = ~np.isfinite(x).all(axis=1)
                     if bad.any():
                         x, logw = self._replace_bad(x, np.where(bad, -np.inf, logw), t)

@@ -48,6 +48,7 @@ def _chunk_loop(f_point, h_point, x, logw, w, u, y, missing, t0, K, z, uu, L1, L
     yh = np.empty(ny)
     r = np.empty(ny)
     xn = np.empty((N, nx))
+    swaps = 0
     fx = np.empty(nx)
     m = np.empty(nx)
     ll = 0.0
@@ -112,7 +113,9 @@ def _chunk_loop(f_point, h_point, x, logw, w, u, y, missing, t0, K, z, uu, L1, L
             _wmoments(x, w, m, xf[t], Pf[t], cov)
             if e < thr * N or nanlike:
                 flags[t] |= 1
-                _systematic(x, w, uu[k], c, xn)
+                _systematic_into(x, w, uu[k], xn)
+                x, xn = xn, x
+                swaps += 1
                 for i in range(N):
                     logw[i] = -np.log(N)
                     w[i] = 1.0 / N
@@ -135,7 +138,8 @@ def _chunk_loop(f_point, h_point, x, logw, w, u, y, missing, t0, K, z, uu, L1, L
             if not fin:
                 anybad = True
                 logw[i] = -np.inf
-        x[:, :] = xn
+        x, xn = xn, x
+        swaps += 1
         if anybad:
             flags[t] |= 4
             amax = -np.inf
@@ -148,10 +152,14 @@ def _chunk_loop(f_point, h_point, x, logw, w, u, y, missing, t0, K, z, uu, L1, L
             lse = amax + np.log(s)
             for i in range(N):
                 w[i] = np.exp(logw[i] - lse)
-            _systematic(x, w, uu[k], c, xn)
+            _systematic_into(x, w, uu[k], xn)
+            x, xn = xn, x
+            swaps += 1
             for i in range(N):
                 logw[i] = -np.log(N)
                 w[i] = 1.0 / N
+    if swaps % 2 == 1:          # the particles must end in the caller's array
+        xn[:, :] = x
     return ll
 
 
@@ -273,6 +281,25 @@ def _systematic_into(x, w, u0, xn):
             xn[j, p] = x[i, p]
 
 
+def propagate(xn, z, L1, diag, out):
+    """out = xn + L1 z row by row (L1 lower triangular; only its diagonal when ``diag``); True when finite."""
+    N, nx = xn.shape
+    ok = True
+    for i in range(N):
+        for p in range(nx):
+            if diag:
+                s = xn[i, p] + z[i, p] * L1[p, p]
+            else:
+                s = 0.0
+                for q in range(p + 1):
+                    s += z[i, q] * L1[p, q]
+                s = xn[i, p] + s
+            out[i, p] = s
+            if not np.isfinite(s):
+                ok = False
+    return ok
+
+
 def moments(x, w, cov, mout, Pout):
     """Weighted mean (and covariance) of x with normalised weights w."""
     m = np.empty(x.shape[1])
@@ -284,6 +311,7 @@ if HAVE_NUMBA:
     _systematic_into = numba.njit(cache=True)(_systematic_into)
     weight_step = numba.njit(cache=True)(weight_step)
     moments = numba.njit(cache=True)(moments)
+    propagate = numba.njit(cache=True)(propagate)
     _moments = numba.njit(cache=True)(_moments)
     _systematic = numba.njit(cache=True)(_systematic)
     _chunk_loop_jit = numba.njit(_chunk_loop)
