@@ -58,14 +58,21 @@ def fit_lti(Xs, Us):
 
 
 def fit_ltv(X, U, lams=None, prior=None, prior_cov=None):
-    """LTV model along one trajectory by (7.5) (order-2 random walk), lambda by maximum likelihood (without
-    the prior).  ``prior`` (T, n, n+m+1): prior mean of [A_t B_t c_t] (7.15) with covariance ``prior_cov``
+    """LTV model along one trajectory by (7.5) (order-2 random walk), lambda by maximum likelihood on the grid
+    ``lams`` (the log-likelihood of :func:`drake_est.identification.ltv.ltv_smoother` without the prior).
+    ``prior`` (T, n, n+m+1): prior mean of [A_t B_t c_t] (7.15) with covariance ``prior_cov``
     (n+m+1, n+m+1) per row.  Returns (LtvModel, lambda)."""
-    from drake_est.identification.ltv import ltv_select_lambda_ml, ltv_smoother
+    from drake_est.identification.ltv import ltv_smoother
     Ub = np.hstack([U, np.ones((len(U), 1))])
     lams = np.logspace(-2, 4, 7) if lams is None else lams
-    lam, _, _ = ltv_select_lambda_ml(X, Ub, lams=lams, order=2, refine=False)
-    res = ltv_smoother(X, Ub, lam, order=2, prior=prior, prior_cov=prior_cov)
+    best, lam = -np.inf, None
+    res = None
+    for l in lams:
+        r = ltv_smoother(X, Ub, float(l), order=2, check=False)   # a singular fit raises anyway
+        if r.loglik > best:
+            best, lam, res = r.loglik, float(l), r
+    if prior is not None:
+        res = ltv_smoother(X, Ub, lam, order=2, prior=prior, prior_cov=prior_cov, check=False)
     return LtvModel.from_result(res, bias_input=True), lam
 
 
