@@ -154,3 +154,25 @@ def test_bad_input():
     ukf = UnscentedKalmanFilter(f, h, R1, R2, x0, P0)
     with pytest.raises(DataError, match="^P_pred is not positive definite at step 0"):
         ukf.correct(x0, -np.eye(3), y[0], u[0], 0)
+
+
+def test_from_python_leafsystem_without_autodiff_uses_finite_differences():
+    from pydrake.systems.framework import BasicVector, LeafSystem
+
+    A, B, C, R1, R2, x0, P0, u, y = _linear(seed=5, T=20)
+
+    class Model(LeafSystem):                               # no scalar conversion: Jacobian by differences
+        def __init__(self):
+            super().__init__()
+            self._x = self.DeclareDiscreteState(BasicVector(np.zeros(3)))
+            self._u = self.DeclareVectorInputPort("u", 1)
+            self.DeclarePeriodicDiscreteUpdateEvent(0.1, 0.0, self._step)
+
+        def _step(self, context, ds):
+            x = context.get_discrete_state(self._x).get_value()
+            ds.get_mutable_vector(self._x).SetFromVector(A @ x + B @ self._u.Eval(context))
+
+    ekf = ExtendedKalmanFilter.from_system(Model(), R1, R2, x0, P0, measurement=C)
+    assert ekf.F is None and ekf.period == pytest.approx(0.1)
+    ref = KalmanFilter(A, C, R1, R2, x0, P0, B=B).smooth(u, y)
+    _assert_same(ekf.smooth(u, y), ref, 1e-7)
