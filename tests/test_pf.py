@@ -312,3 +312,16 @@ def test_pmmh_short_chain():
     assert np.array_equal(r.chain[:20], r2.chain)
     with pytest.raises(DataError, match="step_cov"):
         pmmh(make, log_prior, [0.5], None, y, n_iter=5, step_cov=[[-1.0]])
+
+
+def test_vectorised_exp_matches_numpy():
+    from drake_est.estimation.pf_kernels import vexp
+    rng = np.random.default_rng(0)
+    a = np.r_[-rng.random(997) * 700.0, 0.0, -np.inf, -750.0]
+    out, kb = np.empty_like(a), np.empty(a.shape[0], np.int64)
+    vexp(a, 0.0, out, kb)
+    ref = np.exp(a)
+    assert np.all(np.abs(out - ref) <= 1e-15 * ref + 1e-300)
+    assert out[-2] == 0.0 and out[-3] == 1.0
+    vexp(a[:10] + 5.0, 5.0, out[:10], kb[:10])
+    np.testing.assert_allclose(out[:10], ref[:10], rtol=1e-14)
