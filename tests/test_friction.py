@@ -95,8 +95,8 @@ def test_gear_coupled_wrist_joint():
     y = 1.8 * np.sign(v[:, 2]) + 0.5 * v[:, 2] + 0.8 * np.sign(v[:, 0]) + 0.3 * v[:, 0] \
         + 0.6 * np.sign(v[:, 1]) + 0.2 * v[:, 1] + 0.05 * rng.standard_normal(N)
     sel = select_steady(v[:, 2], a_max=np.inf, v_min=0.05)
-    nom = fit_friction(t, Q, DQ, y, model="nominal", nominal="viscous", joint=2, selection=sel)
-    cpl = fit_friction(t, Q, DQ, y, model="coupled", nominal="viscous", joint=2, coupling=coupling, selection=sel)
+    nom = fit_friction(t, Q, DQ, y, model="nominal", nominal="viscous", index=2, selection=sel)
+    cpl = fit_friction(t, Q, DQ, y, model="coupled", nominal="viscous", index=2, coupling=coupling, selection=sel)
     p = cpl.model.params()
     truth = {"kc": 1.8, "kv": 0.5, "kc_q1": 0.8, "kv_q1": 0.3, "kc_q2": 0.6, "kv_q2": 0.2}
     for k, val in truth.items():
@@ -213,3 +213,30 @@ def test_friction_package_has_no_import_cycle_and_old_names_work():
         warnings.simplefilter("always")
         from drake_est.identification.energy import fit_energy as old
     assert old is fr.fit_energy
+
+
+def test_joint_means_one_based_and_index_is_the_column():
+    """issue #18: the 0-based data column is `index`; an old `joint=` still means that column (never
+    silently re-read as a joint number) but warns; coupled_joints exists once (1-based)."""
+    import warnings
+
+    from drake_est.errors import DataError
+    from drake_est.identification.friction import JointFriction
+    from drake_est.joints import coupled_joints
+    from drake_est.robots import irb140_metadata
+    m = JointFriction.coulomb_viscous(2.0, 1.0, index=1, joint_number=2)
+    assert m.index == 1 and m.to_dict()["joint"] == 2 and m.to_dict()["index"] == 1
+    with pytest.warns(DeprecationWarning, match="index="):
+        old = JointFriction.coulomb_viscous(2.0, 1.0, joint=1)
+    assert old.index == 1
+    with pytest.raises(DataError, match="index= only"):
+        JointFriction.coulomb_viscous(2.0, 1.0, joint=1, index=1)
+    N = irb140_metadata().motor_from_arm
+    assert coupled_joints(N, 6) == [4, 5] and coupled_joints(N, 5) == [4] and coupled_joints(N, 1) == []
+    assert coupled_joints(None, 2, [1, 2, 3]) == [1, 3]
+    with pytest.raises(DataError, match="joint 7 does not exist"):
+        coupled_joints(N, 7)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        from drake_est.identification.friction import coupled_joints as old_cj
+        assert old_cj(N, 5) == [3, 4]          # deprecated 0-based form, same answer

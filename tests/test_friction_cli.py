@@ -77,7 +77,7 @@ def test_params_json_joint_numbers_are_one_based(tmp_path):
 
     from drake_est.identification.friction import JointFriction
     from drake_est.systems.friction import FrictionModel
-    m = JointFriction.coulomb_viscous(3.0, 1.0, joint=0, joint_number=2)   # data column 0 holds joint 2
+    m = JointFriction.coulomb_viscous(3.0, 1.0, index=0, joint_number=2)   # data column 0 holds joint 2
     d = {"model": m.to_dict()}
     fm = FrictionModel.from_params(d, n_joints=3)
     F = fm.friction([0, 0, 0], [0.0, 0.5, 0.0])

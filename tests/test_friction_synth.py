@@ -117,6 +117,6 @@ def test_multi_joint_friction_with_gravity_estimated_jointly():
         assert _rel(m.params()["kv"], truth["friction"][j + 1]["kv"]) < 0.15
     # friction alone against the (payload-free) nominal rigid-body model is far off
     j = js[0]
-    m = JointFriction(nominal_terms("viscous"), joint=j, lam=0.0).fit(Q, DQ, TAU[:, j] - ID[:, j], mask=mask[:, j])
+    m = JointFriction(nominal_terms("viscous"), index=j, lam=0.0).fit(Q, DQ, TAU[:, j] - ID[:, j], mask=mask[:, j])
     r = (m.predict(Q, DQ) - (TAU[:, j] - ID[:, j]))[mask[:, j]]
     assert np.sqrt(np.mean(r ** 2)) > 3 * sigma

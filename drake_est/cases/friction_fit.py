@@ -47,8 +47,8 @@ def fit_log(log, model="nominal", joint=None, robot="auto", nominal="asymmetric"
     # (9.9) on this joint and, for the coupled model, on the coupled joints too (their sign(v) terms)
     sel_cols = [col]
     if model == "coupled" and meta is not None:
-        from drake_est.identification.friction import coupled_joints
-        sel_cols += coupled_joints(meta.motor_from_arm, col)
+        from drake_est.joints import coupled_joints
+        sel_cols += [log.col(i) for i in coupled_joints(meta.motor_from_arm, joint) if i in log.joints]
     sel = select_steady(log.dq[:, sel_cols], log.ddq[:, sel_cols], v_min=v_min, a_max=a_max)
     # constant-velocity experiment (Sec. 9.6 sweep): keep (9.9) samples, subtract ID(q, dq, 0) only;
     # otherwise (e.g. sinusoidal excitation: median |a| above 5 % of max |v| per second) subtract the full
@@ -67,11 +67,11 @@ def fit_log(log, model="nominal", joint=None, robot="auto", nominal="asymmetric"
             raise DrakeEstError("the coupled model needs the robot's coupling matrix: use --robot irb140 with a "
                                 "6-joint log")
         coupling = meta.motor_from_arm
-    res = fit_friction(log.t, log.q, log.dq, y, model=model, joint=col, nominal=nominal, gear_ratio=gear_ratio,
+    res = fit_friction(log.t, log.q, log.dq, y, model=model, index=col, nominal=nominal, gear_ratio=gear_ratio,
                        coupling=coupling, holdout=holdout, selection=sel, n_position=n_position,
                        width_factor=width_factor, energy_iters=energy_iters, truth=truth, joint_number=joint,
                        joint_numbers=list(log.joints))
-    info = {"joint": joint, "column": col, "robot": None if meta is None else meta.name,
+    info = {"joint": joint, "index": col, "robot": None if meta is None else meta.name,
             "rigid_body_subtracted": rob is not None, "gear_ratio": gear_ratio,
             "inertia_subtracted": bool(rob is not None and not steady),
             "experiment": "constant-velocity (9.9)" if steady else "excitation (ID subtracted)"}

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_est.errors import DataError, DrakeEstError
+from drake_est.joints import coupled_joints as _coupled_joints
 
 #: the analysis uses at most this many selected samples per joint (uniformly thinned in time
 #: beyond it; energy filtering always runs on the full-rate series)
@@ -115,13 +116,10 @@ def _robot_state(log, robot, joints_needed):
 
 
 def coupled_joints(j, moving, meta=None) -> list:
-    """Joints whose motor friction can enter joint ``j``'s torque (9.12): with a coupling matrix
-    (``meta.motor_from_arm``, q_motor = N q_arm) the moving joints i with N[j, i] != 0; without one
-    (generic) every other moving joint."""
-    if meta is not None:
-        N = meta.motor_from_arm
-        return [i for i in moving if i != j and N[j - 1, i - 1] != 0]
-    return [i for i in moving if i != j]
+    """Joints whose motor friction can enter joint ``j``'s torque (9.12), among the ``moving`` joints
+    (all 1-based): :func:`drake_est.joints.coupled_joints` with the robot's coupling matrix
+    (``meta.motor_from_arm``), or every other moving joint without one (generic)."""
+    return _coupled_joints(None if meta is None else meta.motor_from_arm, j, list(moving))
 
 
 def select_rows(v, a, t):

@@ -56,7 +56,7 @@ def diagnosed_friction_models(result, model, fit, cols: dict, sign_eps: float = 
             terms.append(ExtensionTerm(e.spec, v_min=v_min, v_range=v_range, coupled_indices=coupled))
             if e.effect == "energy_dependent_friction":
                 energy = EnergyDynamics(gain=1.0, time_constant=float(e.spec["tau_e"]), h=h)
-        m = JointFriction(terms, joint=cols[j], lam=0.0, energy=energy, joint_number=int(j),
+        m = JointFriction(terms, index=cols[j], lam=0.0, energy=energy, joint_number=int(j),
                           name="diagnosed", energy_additive=False,
                           torque_limit=1.5 * float(np.max(np.abs(jd.y))))
         m.coef = np.asarray(fit.coef[j], float).copy()

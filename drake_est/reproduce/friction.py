@@ -154,7 +154,7 @@ def _fit_models(log, truth, models, joint, nominal="asymmetric"):
         res, info = fit_log(log, model=name, joint=joint, nominal=nominal)
         a = res.arrays
         val = a["selected"] & ~a["train"]
-        Ft = truth["friction_torque"][:, info["column"]]
+        Ft = truth["friction_torque"][:, info["index"]]
         out[name] = {"result": res, "info": info, "elapsed_s": time.time() - t0,
                      "model_error_rmse": float(np.sqrt(np.mean((a["yhat"][val] - Ft[val]) ** 2)))}
     return out

@@ -70,7 +70,7 @@ def _as_models(models, n_joints):
         if m.coef is None:
             raise DrakeEstError(f"joint {index_to_joint(index)}: friction model is not fitted")
         m = m.copy()
-        m.joint = index  # the model reads its own joint from column `index` of the plant's q, dq
+        m.index = index  # the model reads its own joint from column `index` of the plant's q, dq
         fixed.append(m)
     return fixed, n_joints
 
@@ -189,7 +189,7 @@ class FrictionModel(LeafSystem):
         km = None if kc_minus is None else np.atleast_1d(np.asarray(kc_minus, float))
         if km is not None and km.shape != kc.shape:
             raise DrakeEstError(f"kc_minus has {km.size} entries, kc has {kc.size}")
-        models = [JointFriction.coulomb_viscous(kc[j], kv[j], joint=j, kc_minus=None if km is None else km[j])
+        models = [JointFriction.coulomb_viscous(kc[j], kv[j], index=j, kc_minus=None if km is None else km[j])
                   for j in range(kc.size)]
         return cls(models, sign_eps=sign_eps)
 
@@ -323,7 +323,7 @@ def contract_cases():
         return {"friction_torques": [float(m.predict(q[None], v[None])[0]) for m in s.models]}
 
     def make_energy():
-        m = JointFriction.coulomb_viscous(2.0, 0.8, joint=0)
+        m = JointFriction.coulomb_viscous(2.0, 0.8, index=0)
         m.energy = EnergyDynamics(gain=0.05, time_constant=0.5, h=0.01)
         return FrictionModel([m, None], sign_eps=0.01)
 

@@ -163,7 +163,7 @@ def fit_energy(model: JointFriction, t, Q, DQ, y, mask=None, gain0: float | None
     if model.energy is None:
         raise DrakeEstError("model has no energy dynamics; build it with model='energy' or 'position+energy'")
     m = np.ones(N, bool) if mask is None else np.asarray(mask, bool)
-    v = DQ[:, model.joint]
+    v = DQ[:, model.index]
     s = np.sign(v)
     W = friction_power(y, v)
     if not np.all(m):

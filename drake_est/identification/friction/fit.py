@@ -13,7 +13,8 @@ from drake_est.regression import ridge_cv
 from drake_est.identification.friction.energy import fit_energy
 from drake_est.identification.friction.model import JointFriction
 from drake_est.identification.friction.terms import (AsymmetricCoulomb, BFETerm, Coulomb, CoupledJoint, EnergyDynamics,
-                                                     Gravity, Offset, Viscous, _cols, coupled_joints)
+                                                     Gravity, Offset, Viscous, _cols)
+from drake_est.joints import coupled_joints, index_to_joint, joint_to_index, resolve_index
 
 # --------------------------------------------------------------------------- data selection (9.9)
 
@@ -115,11 +116,12 @@ def nominal_terms(kind: str = "asymmetric", gravity: bool = False, offset: bool 
 MODELS = ("nominal", "position", "motor", "position+motor", "energy", "position+energy", "pve", "coupled")
 
 
-def build_model(model: str, Q, DQ, joint: int = 0, nominal: str = "asymmetric", gear_ratio: float | None = None,
+def build_model(model: str, Q, DQ, joint: int | None = None, nominal: str = "asymmetric", gear_ratio: float | None = None,
                 coupling=None, n_position: int = 12, n_motor: int = 36, n_velocity: int = 6,
                 width_factor: float = 1.0, gravity: bool = False, lam="cv", joint_number=None,
-                n_energy: int = 3, joint_numbers=None) -> JointFriction:
-    """An unfitted :class:`JointFriction` of the named structure.
+                n_energy: int = 3, joint_numbers=None, index: int | None = None) -> JointFriction:
+    """An unfitted :class:`JointFriction` of the named structure for data column ``index`` (0-based;
+    ``joint=`` is its deprecated old name, see :func:`drake_est.joints.resolve_index`).
 
     * ``nominal``: (9.1)-(9.3);
     * ``position``: nominal + normalized Gaussian RBFs in arm position, split by sign of v (9.16);
@@ -131,6 +133,7 @@ def build_model(model: str, Q, DQ, joint: int = 0, nominal: str = "asymmetric", 
     * ``coupled``: nominal + Coulomb/viscous terms of the gear-coupled wrist joints (9.12); ``coupling``
       is the robot's motor-from-arm matrix (q_motor = N q_arm) restricted to the joints in the data;
       ``joint_numbers`` (1-based, per data column) only label the columns."""
+    joint = resolve_index(index, joint, "build_model")  # private: the 0-based column
     Q, DQ = _cols(Q, "q"), _cols(DQ, "dq")
     terms = nominal_terms(nominal, gravity=gravity)
     if model not in MODELS:
@@ -148,7 +151,7 @@ def build_model(model: str, Q, DQ, joint: int = 0, nominal: str = "asymmetric", 
         N = np.asarray(coupling, dtype=float)
         if N.shape != (Q.shape[1], Q.shape[1]):
             raise DataError(f"coupling matrix has shape {N.shape} for a log with {Q.shape[1]} joints")
-        ks = coupled_joints(N, joint)
+        ks = [joint_to_index(i) for i in coupled_joints(N, index_to_joint(joint))]
         if not ks:
             raise DrakeEstError(f"joint column {joint} is not gear-coupled to any other joint in the coupling matrix")
         for k in ks:
@@ -156,7 +159,7 @@ def build_model(model: str, Q, DQ, joint: int = 0, nominal: str = "asymmetric", 
     energy = None
     if model in ("energy", "position+energy"):
         energy = EnergyDynamics(gain=0.0, time_constant=1.0, h=1.0)  # placeholder, set by fit_energy
-    m = JointFriction(terms, joint=joint, lam=lam, energy=energy, joint_number=joint_number, name=model)
+    m = JointFriction(terms, index=joint, lam=lam, energy=energy, joint_number=joint_number, name=model)
     m.info["n_energy"] = n_energy
     m.info["n_position"] = n_position
     m.info["width_factor"] = width_factor
@@ -166,8 +169,8 @@ def build_model(model: str, Q, DQ, joint: int = 0, nominal: str = "asymmetric", 
 def add_energy_expansion(model: JointFriction, Q, DQ, E, n=(40, 6, 3), width_factor=1.0) -> JointFriction:
     """Replace a fitted energy model's sign(v) E term by a P x V x E expansion (Sec. 9.6)."""
     terms = [t for t in model.terms if not isinstance(t, BFETerm)]
-    terms.append(BFETerm.from_data(["q", "dq", "E"], Q, DQ, model.joint, list(n), width_factor, E=E, label="pve"))
-    return JointFriction(terms, joint=model.joint, lam=model.lam, energy=None, joint_number=model.joint_number,
+    terms.append(BFETerm.from_data(["q", "dq", "E"], Q, DQ, model.index, list(n), width_factor, E=E, label="pve"))
+    return JointFriction(terms, index=model.index, lam=model.lam, energy=None, joint_number=model.joint_number,
                          name="pve")
 
 
@@ -231,7 +234,7 @@ def _choose_structure(model_name, Q, DQ, y, joint, fit_idx, build_kw, candidates
     sub = _cv_subsample(fit_idx, 8000)
     best, table = None, []
     for n, wf in candidates:
-        m = build_model(model_name, Q[fit_idx], DQ[fit_idx], joint=joint, n_position=n, width_factor=wf,
+        m = build_model(model_name, Q[fit_idx], DQ[fit_idx], index=joint, n_position=n, width_factor=wf,
                         **build_kw)
         A, _ = m.regressors(Q[sub], DQ[sub])
         if A.shape[0] < 2 * A.shape[1]:
@@ -247,14 +250,16 @@ def _choose_structure(model_name, Q, DQ, y, joint, fit_idx, build_kw, candidates
     return best[1], best[2], table
 
 
-def fit_friction(t, Q, DQ, y, model: str = "nominal", joint: int = 0, ddq=None, holdout: float = 0.3,
+def fit_friction(t, Q, DQ, y, model: str = "nominal", joint: int | None = None, ddq=None, holdout: float = 0.3,
                  nominal: str = "asymmetric", gear_ratio: float | None = None, coupling=None,
                  n_position: int | None = None, width_factor: float | None = None, n_motor: int = 36,
                  n_velocity: int = 6, selection: Selection | None = None, v_min=None, a_max=None,
                  energy_iters: int = 50, energy_init=None, truth: dict | None = None, joint_number=None,
-                 joint_numbers=None, gravity: bool = False, energy_power: str = "measured") -> FrictionResult:
+                 joint_numbers=None, gravity: bool = False, energy_power: str = "measured",
+                 index: int | None = None) -> FrictionResult:
     """Fit the named model (see :func:`build_model`) to the friction torque ``y`` of
-    data column ``joint`` and validate it on a held-out block.
+    data column ``index`` (0-based; ``joint=`` is its deprecated old name; ``joint_number`` the
+    1-based joint number written to files) and validate it on a held-out block.
 
     * ``y`` is the measured torque minus what the rigid-body model explains (or the
       raw torque for a single joint at constant velocity, (9.9));
@@ -266,6 +271,7 @@ def fit_friction(t, Q, DQ, y, model: str = "nominal", joint: int = 0, ddq=None, 
       sees measured torque.
     ``truth`` (names -> values) adds NPE (9.28) to the metrics. ``energy_power``: see
     :func:`drake_est.identification.friction.energy.fit_energy`."""
+    joint = resolve_index(index, joint, "fit_friction")  # private: the 0-based column
     t = np.asarray(t, float).ravel()
     Q, DQ = _cols(Q, "q"), _cols(DQ, "dq")
     y = np.asarray(y, float).ravel()
@@ -303,7 +309,7 @@ def fit_friction(t, Q, DQ, y, model: str = "nominal", joint: int = 0, ddq=None, 
     width_factor = width_factor or 1.0
     structure.update({"n_position": n_position, "width_factor": width_factor})
     # the grid spans the training data
-    m = build_model(model, Q[fit_mask], DQ[fit_mask], joint=joint, n_position=n_position,
+    m = build_model(model, Q[fit_mask], DQ[fit_mask], index=joint, n_position=n_position,
                     width_factor=width_factor, **build_kw)
     if m.energy is not None:
 
@@ -313,7 +319,7 @@ def fit_friction(t, Q, DQ, y, model: str = "nominal", joint: int = 0, ddq=None, 
             # Sec. 9.4: estimate E with the simple nominal model first; start the extended model from it and
             # from the torque-envelope guess (9.27), and keep the run with the lower training output error
             # (a flexible expansion fitted before E is known can absorb the warm-up transient)
-            m0 = build_model("energy", Q[fit_mask], DQ[fit_mask], joint=joint, **build_kw)
+            m0 = build_model("energy", Q[fit_mask], DQ[fit_mask], index=joint, **build_kw)
             e0 = fit_energy(m0, t[tr], Q[tr], DQ[tr], y[tr], mask=sel[tr], n_iter=energy_iters, power=energy_power)
             starts = [(m0.energy.gain, m0.energy.time_constant), (e0.initial["gain"], e0.initial["time_constant"])]
             structure["energy_stage1"] = {"gain": starts[0][0], "time_constant": starts[0][1], "initial": e0.initial}

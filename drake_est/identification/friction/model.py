@@ -7,7 +7,7 @@ import copy
 import numpy as np
 
 from drake_est.errors import DataError, DrakeEstError, IdentifiabilityError
-from drake_est.joints import index_to_joint, joint_to_index
+from drake_est.joints import index_to_joint, joint_to_index, resolve_index
 from drake_est.regression import check_excitation, ridge_cv, ridge_fit, ridge_gram_dof, ridge_gram_solve
 
 from drake_est.identification.friction.extensions import term_from_dict
@@ -30,7 +30,9 @@ class JointFriction:
     Parameters
     ----------
     terms : list of :class:`Term`.
-    joint : column of the joint in the (N, n) data arrays handed to fit/predict.
+    index : 0-based column of the joint in the (N, n) data arrays handed to fit/predict.
+    joint : deprecated spelling of ``index`` (a 0-based column; DeprecationWarning) -- in drake_est
+        ``joint`` means a 1-based joint number, which is ``joint_number`` here.
     lam : ridge penalty on penalized (basis-function) columns; "cv" chooses it by
         contiguous 5-fold cross-validation in :meth:`fit`.
     energy : :class:`EnergyDynamics` or None.
@@ -42,13 +44,13 @@ class JointFriction:
         clip at 1.5 x the largest torque seen, instead of extrapolating).
     """
 
-    def __init__(self, terms, joint: int = 0, lam="cv", energy: EnergyDynamics | None = None,
+    def __init__(self, terms, joint: int | None = None, lam="cv", energy: EnergyDynamics | None = None,
                  joint_number: int | None = None, name: str = "", energy_additive: bool = True,
-                 torque_limit: float | None = None):
+                 torque_limit: float | None = None, index: int | None = None):
         self.terms = list(terms)
         if not self.terms:
             raise DrakeEstError("a friction model needs at least one term")
-        self.joint = int(joint)
+        self.index = resolve_index(index, joint, "JointFriction")
         self.lam = lam
         self.energy = energy
         self.joint_number = joint_number
@@ -88,10 +90,10 @@ class JointFriction:
         Q, DQ = _cols(Q, "q"), _cols(DQ, "dq")
         if Q.shape != DQ.shape:
             raise DataError(f"q has shape {Q.shape} but dq has {DQ.shape}")
-        if not 0 <= self.joint < Q.shape[1]:
-            raise DataError(f"joint column {self.joint} not in data with {Q.shape[1]} joints")
-        A = np.hstack([tm.columns(Q, DQ, self.joint, E, sign_eps, t=t) if tm.needs_time
-                       else tm.columns(Q, DQ, self.joint, E, sign_eps) for tm in self.terms])
+        if not 0 <= self.index < Q.shape[1]:
+            raise DataError(f"joint column {self.index} not in data with {Q.shape[1]} joints")
+        A = np.hstack([tm.columns(Q, DQ, self.index, E, sign_eps, t=t) if tm.needs_time
+                       else tm.columns(Q, DQ, self.index, E, sign_eps) for tm in self.terms])
         return A, self.names
 
     # ---------------------------------------------------------------- fitting
@@ -109,8 +111,8 @@ class JointFriction:
         A, names = self.regressors(Q, DQ, E)
         if mask is not None:
             A, y = A[mask], y[mask]
-        _check_identifiable(A, names, self.penalize, self.terms, DQ[mask, self.joint] if mask is not None
-                            else DQ[:, self.joint])
+        _check_identifiable(A, names, self.penalize, self.terms, DQ[mask, self.index] if mask is not None
+                            else DQ[:, self.index])
         pen = self.penalize
         if self.has_bfe:
             if isinstance(self.lam, str):
@@ -162,7 +164,7 @@ class JointFriction:
         self._check_fitted()
         Q, DQ = _cols(Q, "q"), _cols(DQ, "dq")
         N = Q.shape[0]
-        v = DQ[:, self.joint]
+        v = DQ[:, self.index]
         s = np.sign(v)
         a, b = self.energy.pole, self.energy.discrete_gain
         E = np.empty(N)
@@ -189,7 +191,7 @@ class JointFriction:
             E = self.simulate_energy(Q, DQ)
         F = self.predict_nominal(Q, DQ, E, sign_eps, t)
         if self.energy is not None and self.energy_additive:
-            F = F + _sign(_cols(DQ, "dq")[:, self.joint], sign_eps) * np.asarray(E, dtype=float).ravel()
+            F = F + _sign(_cols(DQ, "dq")[:, self.index], sign_eps) * np.asarray(E, dtype=float).ravel()
         if self.torque_limit is not None:
             F = np.clip(F, -self.torque_limit, self.torque_limit)
         return F
@@ -213,7 +215,7 @@ class JointFriction:
     def to_dict(self) -> dict:
         self._check_fitted()
         return {"format": "drake_est.friction/2", "name": self.name, "joint": self.joint_number_or_index(),
-                "index": self.joint, "joint_number": self.joint_number, "terms": [t.to_dict() for t in self.terms],
+                "index": self.index, "joint_number": self.joint_number, "terms": [t.to_dict() for t in self.terms],
                 "names": self.names, "coef": np.asarray(self.coef).tolist(), "lam": self.info.get("lam", 0.0),
                 "params": self.params(), "energy": None if self.energy is None else self.energy.to_dict(),
                 "sign_convention": "tau_measured = ID(q, dq, ddq) + F; F has the sign of the velocity",
@@ -229,7 +231,7 @@ class JointFriction:
             index = int(d.get("joint", 0))
         else:
             raise DataError("not a drake_est friction model (missing format 'drake_est.friction/2')")
-        m = cls([term_from_dict(t) for t in d["terms"]], joint=index, lam=d.get("lam", 0.0),
+        m = cls([term_from_dict(t) for t in d["terms"]], index=index, lam=d.get("lam", 0.0),
                 energy=None if d.get("energy") is None else EnergyDynamics.from_dict(d["energy"]),
                 joint_number=d.get("joint_number"), name=d.get("name", ""),
                 energy_additive=d.get("energy_additive", True), torque_limit=d.get("torque_limit"))
@@ -238,22 +240,33 @@ class JointFriction:
             raise DataError(f"friction model has {m.coef.size} coefficients for {m.n_params} regressors")
         return m
 
+    @property
+    def joint(self) -> int:
+        """Deprecated read alias of :attr:`index` (the 0-based data column)."""
+        return self.index
+
+    @joint.setter
+    def joint(self, value):
+        self.index = int(value)
+
     def joint_number_or_index(self) -> int:
         """The 1-based joint number: ``joint_number`` when known, else the data column + 1."""
-        return int(self.joint_number) if self.joint_number is not None else index_to_joint(self.joint)
+        return int(self.joint_number) if self.joint_number is not None else index_to_joint(self.index)
 
     def copy(self) -> "JointFriction":
         return copy.deepcopy(self)
 
     @classmethod
-    def coulomb_viscous(cls, kc, kv, joint: int = 0, kc_minus=None, joint_number=None) -> "JointFriction":
+    def coulomb_viscous(cls, kc, kv, joint: int | None = None, kc_minus=None, joint_number=None,
+                        index: int | None = None) -> "JointFriction":
         """A fixed (not fitted) Coulomb + viscous model (9.2), or direction-dependent
-        (9.3) when ``kc_minus`` is given (then ``kc`` is kc+)."""
+        (9.3) when ``kc_minus`` is given (then ``kc`` is kc+). ``index``: 0-based data column."""
+        index = resolve_index(index, joint, "JointFriction.coulomb_viscous")
         if kc_minus is None:
-            m = cls([Viscous(), Coulomb()], joint=joint, lam=0.0, joint_number=joint_number, name="nominal")
+            m = cls([Viscous(), Coulomb()], index=index, lam=0.0, joint_number=joint_number, name="nominal")
             m.coef = np.array([kv, kc], dtype=float)
         else:
-            m = cls([Viscous(), AsymmetricCoulomb()], joint=joint, lam=0.0, joint_number=joint_number,
+            m = cls([Viscous(), AsymmetricCoulomb()], index=index, lam=0.0, joint_number=joint_number,
                     name="nominal-asymmetric")
             m.coef = np.array([kv, kc, kc_minus], dtype=float)
         return m

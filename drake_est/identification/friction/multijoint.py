@@ -90,7 +90,7 @@ def fit_multi_joint(Q, DQ, TAU, Y, joints=None, nominal: str = "viscous", mask=N
     if M.ndim == 1:
         M = np.repeat(M[:, None], n, axis=1)
     train_idx, val_idx = split_holdout(N, holdout)
-    models = [JointFriction(nominal_terms(nominal), joint=j, lam=0.0, name="nominal") for j in joints]
+    models = [JointFriction(nominal_terms(nominal), index=j, lam=0.0, name="nominal") for j in joints]
     blocks = [m.regressors(Q, DQ)[0] for m in models]
     p_f = [b.shape[1] for b in blocks]
     P = sum(p_f) + Y.shape[2]

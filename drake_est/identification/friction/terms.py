@@ -162,10 +162,14 @@ class CoupledJoint(Term):
 
 
 def coupled_joints(motor_from_arm, joint: int) -> list:
-    """0-based columns k != joint with a nonzero coupling entry in row ``joint`` of the
-    motor-from-arm matrix (lower-triangular wrist structure of Eq. (9.10))."""
-    N = np.asarray(motor_from_arm, dtype=float)
-    return [k for k in range(N.shape[1]) if k != joint and N[joint, k] != 0.0]
+    """Deprecated 0-based form of :func:`drake_est.joints.coupled_joints` (which takes and returns
+    1-based joint numbers): 0-based columns k != ``joint`` (a 0-based index) with N[joint, k] != 0."""
+    import warnings
+
+    from drake_est.joints import coupled_joints as _coupled
+    warnings.warn("identification.friction.coupled_joints takes 0-based indices; use "
+                  "drake_est.joints.coupled_joints (1-based joint numbers)", DeprecationWarning, stacklevel=2)
+    return [i - 1 for i in _coupled(motor_from_arm, int(joint) + 1)]
 
 
 class BFETerm(Term):
