@@ -28,8 +28,8 @@ def child_seed(seed: int, index: int) -> int:
 
 
 def _call(func, params, seed):
-    from threadpoolctl import threadpool_limits
-    with threadpool_limits(1):
+    from drake_est.fleet.run import single_thread_blas
+    with single_thread_blas():
         return func(params, seed=seed)
 
 

@@ -193,10 +193,20 @@ def _worker_name() -> str:
         return f"pid{os.getpid()}"
 
 
+def single_thread_blas():
+    """Context limiting BLAS/OpenMP to one thread (threadpoolctl when installed; worker processes
+    also get ``OMP_NUM_THREADS=1`` etc. from :func:`worker_env`)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - threadpoolctl comes with scikit-learn
+        import contextlib
+        return contextlib.nullcontext()
+    return threadpool_limits(1)
+
+
 def diagnose_entry(entry: dict, settings: dict, sha: str | None = None) -> dict:
     """Diagnose one log (runs on a worker, single-threaded BLAS).  Never raises for a bad log:
     returns ``status="failed"`` with the one-line reason instead."""
-    from threadpoolctl import threadpool_limits
     t0 = time.perf_counter()
     res = {"entry": entry, "settings": settings, "settings_hash": settings_hash(settings),
            "software_version": software_version(), "worker": _worker_name(), "findings": [], "parameters": []}
@@ -206,7 +216,7 @@ def diagnose_entry(entry: dict, settings: dict, sha: str | None = None) -> dict:
         res.update(file_sha256="missing", status="failed", error=f"cannot read {entry['path']}: {err.strerror}")
         return res
     try:
-        with threadpool_limits(1):
+        with single_thread_blas():
             res.update(_diagnose(entry, settings))
         res["status"] = "ok"
     except Exception as err:  # a corrupt log must not stop the fleet: record the one-line reason
