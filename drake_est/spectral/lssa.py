@@ -132,7 +132,7 @@ def _offset_gram(G, b, N: int, sum_y: float, T: np.ndarray):
     return Ge, be
 
 
-def _scan_system(xs, y, freqs, Phi, fit_mean: bool, sums, one_at_a_time: bool = False, show=None):
+def _scan_system(xs, y, freqs, Phi, fit_mean: bool, sums, one_at_a_time: bool = False, show=None, diag=None):
     """Per-frequency normal equations (G (O, d, d), b (O, d)) of the LPV periodogram from trigonometric
     sums ``sums(x, weights (K, N), freqs, harmonic) -> (K, O)`` (:func:`~drake_est.spectral.nufft.trig_sums`
     or its direct reference); ``xs`` centred locations.  ``one_at_a_time`` builds and transforms one
@@ -178,6 +178,12 @@ def _scan_system(xs, y, freqs, Phi, fit_mean: bool, sums, one_at_a_time: bool = 
                 if k[0] == "m":
                     m0[k[1]] = w.sum()
     S2 = np.array([S[("m", c)] for c in range(iu[0].size)])           # (P, O)
+    if diag is not None:               # what _ill_conditioned needs
+        dg = np.flatnonzero(iu[0] == iu[1])
+        diag["S2d"], diag["m0d"] = S2[dg], m0[dg]
+        if fit_mean:
+            diag["T"] = np.array([S[("t", j)] for j in range(J)])
+            diag["tsum"] = Phi.sum(axis=0)
     M0 = sym_blocks(m0, iu, J)
     G = gram_blocks(M0, sym_blocks(S2.real.T, iu, J), sym_blocks(S2.imag.T, iu, J))
     bj = np.array([S[("b", j)] for j in range(J)]).T
@@ -211,7 +217,7 @@ def ls_scan(x, y, freqs, Phi=None, chunk: int | None = None, jitter: float = 1e-
     equations have condition number above ``exact_cond`` (default ``1e-10 / eps``: near 0 and near a
     regular-sampling Nyquist rate the sine column vanishes and the NUFFT error would be amplified) are
     recomputed by the direct sums, so the result equals the direct path to a relative ~1e-9."""
-    from drake_est.spectral.nufft import DEFAULT_EPS, explained_ss, trig_sums, trig_sums_direct
+    from drake_est.spectral.nufft import DEFAULT_EPS, TrigSumPlan, explained_ss, trig_sums_direct
 
     x = _clean_1d(x, "sample locations")
     y = _clean_1d(y, "signal")
@@ -245,30 +251,39 @@ def ls_scan(x, y, freqs, Phi=None, chunk: int | None = None, jitter: float = 1e-
         G, b = _scan_system(xs, y, freqs, Phi, fit_mean, direct)
         return explained_ss(G, b, jitter)
 
-    def fast(xx, c, f, h):
-        return trig_sums(xx, c, f, h, eps=eps, nthreads=nthreads, center=False)
+    plans = {}
 
+    def fast(xx, c, f, h):                    # one prepared NUFFT per harmonic, reused for every weight
+        if h not in plans:
+            plans[h] = TrigSumPlan(xx, f, h, eps=eps, nthreads=nthreads, center=False)
+        return plans[h](c)
+
+    diag = {}
     G, b = _scan_system(xs, y, freqs, Phi, fit_mean, fast, one_at_a_time=True,
-                        show=_progress_if_slow(N, freqs.size))
-    bad = _ill_conditioned(G, Phi, fit_mean, 1e-10 / eps if exact_cond is None else float(exact_cond))
+                        show=_progress_if_slow(N, freqs.size), diag=diag)
+    bad = _ill_conditioned(diag["S2d"], diag["m0d"], diag.get("T"), diag.get("tsum"),
+                           1e-10 / eps if exact_cond is None else float(exact_cond))
     if bad.size:
         Gd, bd = _scan_system(xs, y, freqs[bad], Phi, fit_mean, direct)
         G[bad], b[bad] = Gd, bd
     return explained_ss(G, b, jitter)
 
 
-def _ill_conditioned(G, Phi, fit_mean: bool, limit: float) -> np.ndarray:
-    """Indices of frequencies whose normal equations are worse conditioned than ``limit`` times the
-    frequency-independent reference ``diag([N,] M0/2, M0/2)`` (what ``G`` tends to away from 0 and
-    Nyquist-like frequencies): there the NUFFT error of the ``cos(2 w x)`` sums would be amplified."""
-    M0 = Phi.T @ Phi
-    ref = np.linalg.eigvalsh(0.5 * M0)
-    lo, hi = ref[0], ref[-1]
-    if fit_mean:
-        lo, hi = min(lo, Phi.shape[0]), max(hi, Phi.shape[0])
-    ref_cond = hi / max(lo, 1e-300)
-    ev = np.linalg.eigvalsh(G)
-    return np.flatnonzero(ev[:, -1] > limit * ref_cond * np.maximum(ev[:, 0], 0.0))
+def _ill_conditioned(S2d, m0d, T, tsum, limit: float) -> np.ndarray:
+    """Indices of frequencies whose normal equations are ill conditioned because a column pair
+    degenerates: for basis function j the (cos, sin) block has eigenvalues ``(m0_jj +- |S2_jj|)/2``, so
+    its condition number is ``(1 + r)/(1 - r)`` with ``r = |sum phi_j^2 exp(2iwx)| / sum phi_j^2`` (-> 1 near
+    0 and near a regular-sampling Nyquist rate, where the sine column vanishes); with the floating offset
+    also ``r = |sum phi_j exp(iwx)| / sum phi_j`` (cosine column -> constant).  There the NUFFT error would be
+    amplified, so these frequencies are recomputed by the direct sums.  O(F J)."""
+    def cond(num, den):
+        r = np.abs(num) / np.maximum(den, 1e-300)[:, None]
+        return (1.0 + r) / np.maximum(1.0 - r, 1e-300)
+
+    c = cond(S2d, m0d).max(axis=0)
+    if T is not None:
+        c = np.maximum(c, cond(T, np.abs(tsum)).max(axis=0))
+    return np.flatnonzero(c > limit)
 
 
 def _progress_if_slow(N: int, F: int, seconds_per_point: float = 1.5e-7):

@@ -68,6 +68,54 @@ def trig_sums_direct(x, c, freqs, harmonic: float = 1.0, chunk_elems: int = 4_00
     return out
 
 
+class TrigSumPlan:
+    """A prepared NUFFT for ``sum_n c_n exp(i 2 pi harmonic f_o x_n)`` over fixed locations ``x`` and grid
+    ``freqs``: the points, the shift phase and the FINUFFT plan are made once and reused for every weight
+    vector (the LPV periodogram needs J + J(J+1)/2 of them).  See :func:`trig_sums`."""
+
+    def __init__(self, x, freqs, harmonic: float = 1.0, eps: float = DEFAULT_EPS, nthreads: int | None = None,
+                 center: bool = True):
+        import finufft
+
+        x = np.asarray(x, dtype=float)
+        freqs = np.asarray(freqs, dtype=float).ravel()
+        self.N, self.F = x.size, freqs.size
+        nthreads = default_threads() if nthreads is None else int(nthreads)
+        self.xc = 0.5 * (float(np.min(x)) + float(np.max(x))) if center and x.size else 0.0
+        xs = x - self.xc if self.xc != 0.0 else x
+        self.g = harmonic * freqs
+        uni = uniform_grid_params(self.g)
+        if uni is not None:
+            g0, dg = uni
+            g_mid = g0 + (self.F // 2) * dg            # modes k = -F//2 .. (F-1)//2 around g_mid
+            t = (2 * np.pi * dg) * xs
+            if np.max(np.abs(t)) >= np.pi:             # fold onto [-pi, pi): exp(i k t) is 2 pi periodic
+                t = np.mod(t + np.pi, 2 * np.pi) - np.pi
+            a = (2 * np.pi * g_mid) * xs
+            self.phase = np.cos(a) + 1j * np.sin(a)
+            self.plan = finufft.Plan(1, (self.F,), eps=eps, isign=1, nthreads=nthreads)
+            self.plan.setpts(t)
+        else:
+            self.phase = None
+            self.plan = finufft.Plan(3, 1, eps=eps, isign=1, nthreads=nthreads)
+            self.plan.setpts(xs, s=2 * np.pi * self.g)
+        a = (2 * np.pi * self.xc) * self.g
+        self.post = None if self.xc == 0.0 else np.cos(a) + 1j * np.sin(a)
+
+    def __call__(self, c) -> np.ndarray:
+        """Sums (K, F) for weights ``c`` (K, N) or (N,)."""
+        c = np.atleast_2d(np.asarray(c))
+        if c.shape[1] != self.N:
+            raise DataError(f"trig_sums: {c.shape[1]} weights per vector but {self.N} sample locations")
+        out = np.empty((c.shape[0], self.F), dtype=complex)
+        for k in range(c.shape[0]):
+            w = c[k] * self.phase if self.phase is not None else c[k].astype(complex)
+            out[k] = self.plan.execute(np.ascontiguousarray(w, dtype=complex))
+        if self.post is not None:
+            out *= self.post[None, :]
+        return out
+
+
 def trig_sums(x, c, freqs, harmonic: float = 1.0, eps: float = DEFAULT_EPS, nthreads: int | None = None,
               center: bool = True) -> np.ndarray:
     """``S[k, o] = sum_n c[k, n] exp(i 2 pi harmonic f_o x_n)`` for every weight vector ``c[k]`` (K, N)
@@ -76,38 +124,11 @@ def trig_sums(x, c, freqs, harmonic: float = 1.0, eps: float = DEFAULT_EPS, nthr
     Uniform grids (:func:`uniform_grid_params`) use a type-1 transform with the shift described in
     the module doc; other grids a type-3 transform.  ``center``: the sums are computed about the
     midpoint ``x_c`` of the data (better conditioned) and multiplied by ``exp(i 2 pi h f x_c)``."""
-    import finufft
-
     x = np.asarray(x, dtype=float)
-    c = np.atleast_2d(np.asarray(c)).astype(complex, copy=False)
-    freqs = np.asarray(freqs, dtype=float).ravel()
-    K, N = c.shape
-    if x.size != N:
-        raise DataError(f"trig_sums: {N} weights per vector but {x.size} sample locations")
-    F = freqs.size
-    nthreads = default_threads() if nthreads is None else int(nthreads)
-    xc = 0.5 * (float(np.min(x)) + float(np.max(x))) if center and N else 0.0
-    xs = x - xc
-    g = harmonic * freqs
-    uni = uniform_grid_params(g)
-    if uni is not None and F >= 2:
-        g0, dg = uni
-        kmin = -(F // 2)
-        g_mid = g0 - kmin * dg
-        t = 2 * np.pi * dg * xs
-        # fold onto [-pi, pi): exp(i k t) is 2 pi periodic for integer k
-        t = np.mod(t + np.pi, 2 * np.pi) - np.pi
-        ph = np.exp(2j * np.pi * g_mid * xs)
-        cw = np.ascontiguousarray(c * ph[None, :])
-        S = finufft.nufft1d1(t, cw if K > 1 else cw[0], F, eps=eps, isign=1, nthreads=nthreads)
-        S = np.atleast_2d(S)
-    else:
-        S = finufft.nufft1d3(xs, np.ascontiguousarray(c) if K > 1 else c[0], 2 * np.pi * g, eps=eps, isign=1,
-                             nthreads=nthreads)
-        S = np.atleast_2d(S)
-    if xc != 0.0:
-        S = S * np.exp(2j * np.pi * g * xc)[None, :]
-    return S
+    c = np.atleast_2d(np.asarray(c))
+    if x.size != c.shape[1]:
+        raise DataError(f"trig_sums: {c.shape[1]} weights per vector but {x.size} sample locations")
+    return TrigSumPlan(x, freqs, harmonic, eps=eps, nthreads=nthreads, center=center)(c)
 
 
 # --------------------------------------------------------------------------- normal equations
@@ -138,6 +159,11 @@ def explained_ss(G: np.ndarray, b: np.ndarray, jitter: float = 1e-10) -> np.ndar
     for one frequency), with a ``jitter * trace(G)/dim`` diagonal ridge for numerical safety."""
     d = G.shape[-1]
     scale = np.trace(G, axis1=1, axis2=2) / d
+    if d == 2:                # closed form (the plain periodogram): much faster than batched LAPACK
+        r = jitter * np.maximum(scale, 1e-300)
+        g11, g22, g12 = G[:, 0, 0] + r, G[:, 1, 1] + r, G[:, 0, 1]
+        b1, b2 = b[:, 0], b[:, 1]
+        return (g22 * b1 * b1 - 2.0 * g12 * b1 * b2 + g11 * b2 * b2) / (g11 * g22 - g12 * g12)
     Gj = G + (jitter * np.maximum(scale, 1e-300))[:, None, None] * np.eye(d)[None]
     sol = np.linalg.solve(Gj, b[..., None])[..., 0]
     return np.einsum("oi,oi->o", b, sol)
