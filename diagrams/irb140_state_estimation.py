@@ -255,6 +255,9 @@ def show_meshcat(robot, X, est_pf):
     pe = np.array([robot.forward_kinematics(x[:6]).translation() for x in est_pf[::5]]).T
     meshcat.SetLine("/true_flange", pts, 2.0, Rgba(0, 0, 0, 1))
     meshcat.SetLine("/pf_flange", pe, 2.0, Rgba(0, 0, 1, 1))
+    import sys
+    if sys.stdin.isatty():
+        input("Meshcat is serving the scene; press Enter to exit ")
 
 
 def main():
