@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.stats
 
-from drake_est.diagnose import detectors as det
+import drake_est.diagnose.detectors as det
 from drake_est.diagnose.nominal import OUTLIER_MAD, block_index, nominal_columns, nominal_names, prepare
 from drake_est.metrics import metrics_table
 from drake_est.regression import ridge_solve
