@@ -20,13 +20,23 @@ def test_registered():
     assert exps["nn-linear"] is nn_linear and exps["nn-cartpole"] is nn_cartpole
 
 
-@pytest.mark.parametrize("func", [nn_linear, pytest.param(nn_cartpole, marks=pytest.mark.slow)])
-def test_reproduction_runs_small(func, tmp_path, monkeypatch):
+@pytest.mark.slow
+@pytest.mark.parametrize("func", [nn_linear, nn_cartpole])
+def test_reproduction_figures(func, tmp_path, monkeypatch):
     monkeypatch.setenv("DRAKE_EST_NO_PROGRESS", "1")
-    res = func(tmp_path, quick=True, seed=1, n_runs=2, n_tune=1, epochs=5, workers=1,
-               grid={"weight_decay": (1e-3, 1e-1), "jacprop": (0.1,)})
+    res = func(tmp_path, quick=True, seed=1, n_runs=2, n_tune=1, epochs=3, workers=1,
+               grid={"weight_decay": (1e-3,), "jacprop": (0.1,)})
+    assert len(res["figures"]) == 3
     for f in res["figures"]:
         assert (tmp_path / f).stat().st_size > 5000
+
+
+@pytest.mark.parametrize("func", [nn_linear, nn_cartpole])
+def test_reproduction_runs_small(func, tmp_path, monkeypatch):
+    monkeypatch.setenv("DRAKE_EST_NO_PROGRESS", "1")
+    res = func(tmp_path, quick=True, seed=1, n_runs=2, n_tune=1, epochs=3, workers=1, figures=False,
+               grid={"weight_decay": (1e-3, 1e-1), "jacprop": (0.1,)})
+    assert res["figures"] == []
     dump_json(res, tmp_path / "r.json")                      # JSON-able, no NaN/Inf
     back = json.loads((tmp_path / "r.json").read_text())
     assert set(back["results"]) == {f"{f}/{m}" for f in "fg" for m in ("none", "weight_decay", "jacprop")}
