@@ -112,3 +112,61 @@ def test_bad_input_is_data_error(data):
         ls_scan(x, y, [1.0], Phi=np.ones((3, 2)))
     with pytest.raises(DataError, match="frequency grid"):
         ls_scan(x, y, [1.0, np.nan])
+
+
+# ----------------------------------------------------------------------------- hardening (issue 19 items 3, 8, 9)
+
+def test_extreme_values_are_a_data_error():
+    from drake_est.spectral import find_periodic_components
+
+    rng = np.random.default_rng(0)
+    x = np.sort(rng.uniform(0, 6, 2000))
+    y = np.sin(2 * np.pi * 3 * x) + 0.1 * rng.standard_normal(2000)
+    y[10] = 1e300
+    with pytest.raises(DataError, match="too large"):
+        find_periodic_components(x, y, n_components=1)
+
+
+def test_schedule_equal_to_signal_is_a_data_error():
+    from drake_est.spectral import find_periodic_components
+
+    rng = np.random.default_rng(1)
+    x = np.sort(rng.uniform(0, 6, 2000))
+    y = np.sin(2 * np.pi * 3 * x) + 0.1 * rng.standard_normal(2000)
+    with pytest.raises(DataError, match="explain the signal entirely"):
+        find_periodic_components(x, y, schedule=y, base=np.column_stack([np.sign(y), y]), n_components=1)
+
+
+def _write_log(path, q, tau):
+    t = np.arange(q.size) * 0.01
+    dq = np.gradient(q, t)
+    rows = "\n".join(",".join(repr(float(v)) for v in r) for r in zip(t, q, dq, tau))
+    path.write_text("t,q1,dq1,tau1\n" + rows + "\n")
+
+
+@pytest.mark.parametrize("extra,quantize,msg", [(["--gear-ratio", "inf"], False, "--gear-ratio"),
+                                                (["--gear-ratio", "nan"], False, "--gear-ratio"),
+                                                (["--schedule", "tau1"], False, "entirely"),
+                                                ([], True, None)])
+def test_spectrum_cli_hardening(tmp_path, capsys, extra, quantize, msg):
+    from drake_est.cli import main
+
+    rng = np.random.default_rng(0)
+    t = np.arange(3000) * 0.01
+    q = 2.4 * np.sin(0.3 * t)
+    if quantize:
+        q = np.round(q / 0.5) * 0.5          # positions quantized to 0.5 rad used to crash the plot
+    tau = 0.5 * np.sign(np.gradient(q, t)) + 0.2 * np.sin(37 * q) + 0.05 * rng.standard_normal(t.size)
+    _write_log(tmp_path / "log.csv", q, tau)
+    args = ["spectrum", str(tmp_path / "log.csv"), "--signal", "tau1", "--position", "q1", "--schedule", "dq1",
+            "--n-components", "1", "--out", str(tmp_path / "o")]
+    if "--schedule" in extra:
+        args[args.index("--schedule") + 1] = extra[1]
+    else:
+        args += extra
+    rc = main(args)
+    err = capsys.readouterr().err
+    if msg is None:
+        assert rc == 0 and (tmp_path / "o" / "spectrum.png").stat().st_size > 1000
+    else:
+        assert rc == 2 and msg in err and "Traceback" not in err

@@ -70,8 +70,8 @@ def run(args) -> int:
     from drake_est.spectral.plots import plot_amplitude_functions, plot_scan
 
     for name, val in (("--f-max", args.f_max), ("--gear-ratio", args.gear_ratio)):
-        if val is not None and not val > 0:
-            raise DataError(f"{name} must be > 0, got {val}")
+        if val is not None and not (np.isfinite(val) and val > 0):
+            raise DataError(f"{name} must be a finite number > 0, got {val}")
     if not 0 < args.level < 1:
         raise DataError(f"--level must be in (0, 1), e.g. 0.95, got {args.level}")
     out = Path(args.out)

@@ -292,6 +292,11 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
         raise DataError(f"signal has {y.size} samples, position {N}")
     if n_components < 1:
         raise DataError(f"n_components must be >= 1, got {n_components}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        too_big = not (np.isfinite(np.sum((y - np.mean(y)) ** 2)) and np.isfinite(np.ptp(x) * np.max(np.abs(x))))
+    if too_big:
+        raise DataError(f"signal or position values are too large for floating point (max |signal| "
+                        f"{np.max(np.abs(y)):.3g}, max |position| {np.max(np.abs(x)):.3g}); check the units")
     if schedule is not None:
         v = _clean_1d(schedule, "schedule")
         if v.size != N:
@@ -319,6 +324,10 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
     if tss <= 0:
         raise DataError("signal is constant; nothing periodic to find")
     rss_base = float(r0 @ r0)
+    if not rss_base > 1e-20 * tss:
+        raise DataError(f"the schedule and base regressors explain the signal entirely (residual "
+                        f"{rss_base / tss:.1e} of its variance): nothing periodic is left; is the schedule the "
+                        "signal itself?")
     span = 1.0 / frequency_resolution(x)
     limit = sampling_density_limit(x)
     res = 1.0 / span
@@ -345,7 +354,7 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
         fr, ess = scan(r)
         if scan_freqs is None:
             scan_freqs, scan_power = fr, ess / rss_base
-        ess = ess.copy()
+        ess = np.where(np.isfinite(ess), ess, -np.inf)
         for f0 in found:
             ess[np.abs(fr - f0) < 1.5 * res] = -np.inf
         if not np.any(np.isfinite(ess)):
@@ -362,6 +371,9 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
         found.append(f)
         model = _joint_fit(x, y, v, basis, found, B, lam)
         r = y - model.predict(x, v, base=B)
+    if model is None:
+        raise DataError("no periodic component could be fitted: the scan has no finite power at any frequency "
+                        "(signal or position values out of floating-point range?)")
     freqs = np.array(found)
     rss_full = model.rss
     expl = np.empty(freqs.size)

@@ -46,6 +46,8 @@ def plot_scan(components, path, unit_scale: float = 1.0, unit_label: str = "cycl
         for est, lab in ((periodogram, "periodogram"), (welch, "Welch")):
             fc, Pc = est(xc, rc, n=n)
             keep = (fc > 0) & (fc <= components.scan_freqs.max())
+            if not np.any(keep):      # e.g. coarsely quantized positions: no classic bin inside the scan range
+                continue
             axc.plot(fc[keep] * unit_scale, Pc[keep] / max(Pc[keep].max(), 1e-300), lw=0.7, label=lab)
         for c in range(components.n_components):
             axc.axvline(components.freqs[c] * unit_scale, color="C3", ls="--", lw=0.8)
