@@ -83,6 +83,7 @@ def test_end_to_end_warnings_match_truth_and_rerun_skips(fleet, client, tmp_path
         pytest.fail("headless browser ../shared/browser/shot not available under CI")
 
 
+@pytest.mark.slow
 def test_killed_worker_loses_and_duplicates_nothing(generic_fleet, tmp_path):
     """A worker process is killed while the run is going; every log ends in the store exactly once."""
     from distributed import Client
