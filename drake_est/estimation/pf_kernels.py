@@ -63,61 +63,66 @@ if HAVE_NUMBA:
     vexp = numba.njit(cache=True)(vexp)
 
 
-def _chunk_loop(f_point, h_point, x, logw, w, u, y, missing, t0, K, z, uu, L1, L2, g0, thr,
-                xf, Pf, xp, Pp, ess, flags, cov):
-    """Steps t0 .. t0+K-1 (in place on x, logw and the outputs); returns the summed log-likelihood.
+def _chunk_loop(f_point, h_point, x, xn, logw, w, u, y, missing, t0, K, z, uu, L1, diag1, L2, inv_sd, diag2,
+                g0, thr, xf, Pf, xp, Pp, ess, flags, cov):
+    """Steps t0 .. t0+K-1 of Algorithm 1 (in place on x, logw, w and the outputs); returns the summed
+    log-likelihood.  On entry xp[t0] holds the predicted mean of (x, w); each step writes xp[t+1] while
+    propagating (one pass over the particles per stage: weight, normalise + mean, resample, propagate + mean).
+    ``xn`` is a scratch array of x's shape; the particles end in ``x``.
 
     flags[t]: bit 0 resampled, bit 1 degenerate (every weight zero), bit 2 non-finite particle replaced."""
     N, nx = x.shape
     ny = y.shape[1]
     T = y.shape[0]
     a = np.empty(N)
-    g = np.empty(N)
-    c = np.empty(N)
     yh = np.empty(ny)
     r = np.empty(ny)
-    xn = np.empty((N, nx))
     kbuf = np.empty(N, np.int64)
-    swaps = 0
     fx = np.empty(nx)
     m = np.empty(nx)
+    d1 = np.empty(nx)
+    for p in range(nx):
+        d1[p] = L1[p, p]
+    x0 = x
     ll = 0.0
+    lnN = np.log(N)
     for k in range(K):
         t = t0 + k
         if t >= T:
             break
         ut = u[t]
-        # predicted moments
-        _wmoments(x, w, m, xp[t], Pp[t], cov)      # w = exp(logw), kept normalised across steps
+        if cov:
+            _wcov(x, w, xp[t], Pp[t])
         if not missing[t]:
-            # weights: a_i = logw_i + log N(y; h(x_i), R2)
+            # weights: a_i = logw_i + log N(y; h(x_i), R2)    (thesis Algorithm 1, weighting)
             nanlike = False
             amax = -np.inf
             for i in range(N):
                 h_point(x[i], ut, t, yh)
-                for p in range(ny):
-                    s = y[t, p] - yh[p]
-                    for q in range(p):
-                        s -= L2[p, q] * r[q]
-                    r[p] = s / L2[p, p]
                 qd = 0.0
-                for p in range(ny):
-                    qd += r[p] * r[p]
+                if diag2:
+                    for p in range(ny):
+                        e = (y[t, p] - yh[p]) * inv_sd[p]
+                        qd += e * e
+                else:
+                    for p in range(ny):
+                        s = y[t, p] - yh[p]
+                        for q in range(p):
+                            s -= L2[p, q] * r[q]
+                        r[p] = s / L2[p, p]
+                        qd += r[p] * r[p]
                 gi = g0 - 0.5 * qd
-                g[i] = gi
                 ai = logw[i] + gi
-                if not np.isfinite(ai):
+                if ai - ai != 0.0:                  # non-finite (rare): weight zero, resample if NaN/+inf
                     if gi != -np.inf:
                         nanlike = True
-                    if ai != -np.inf:
-                        ai = -np.inf
+                    ai = -np.inf
                 a[i] = ai
                 if ai > amax:
                     amax = ai
             degenerate = amax == -np.inf
             if degenerate:
                 flags[t] |= 2
-                amax = -np.inf
                 for i in range(N):
                     a[i] = logw[i]
                     if a[i] > amax:
@@ -127,69 +132,101 @@ def _chunk_loop(f_point, h_point, x, logw, w, u, y, missing, t0, K, z, uu, L1, L
             for i in range(N):
                 s += w[i]
             lse = amax + np.log(s)
-            if not degenerate:
-                ll += lse
-            else:
-                ll += -np.inf
+            ll += lse if not degenerate else -np.inf
+            # normalise, ESS and the filtered mean in one pass
             s2 = 0.0
             inv_s = 1.0 / s
+            for p in range(nx):
+                m[p] = 0.0
             for i in range(N):
+                wi = w[i] * inv_s
+                w[i] = wi
                 logw[i] = a[i] - lse
-                w[i] *= inv_s
-                s2 += w[i] * w[i]
+                s2 += wi * wi
+                for p in range(nx):
+                    m[p] += wi * x[i, p]
             e = 1.0 / s2
             ess[t] = e
-            _wmoments(x, w, m, xf[t], Pf[t], cov)
+            for p in range(nx):
+                xf[t, p] = m[p]
+            if cov:
+                _wcov(x, w, m, Pf[t])
             if e < thr * N or nanlike:
                 flags[t] |= 1
                 _systematic_into(x, w, uu[k], xn)
                 x, xn = xn, x
-                swaps += 1
                 for i in range(N):
-                    logw[i] = -np.log(N)
+                    logw[i] = -lnN
                     w[i] = 1.0 / N
         else:
             xf[t, :] = xp[t]
             if cov:
                 Pf[t, :, :] = Pp[t]
-        # propagate: x_i <- f(x_i) + L1 z_i
-        anybad = False
+        # propagate x_i <- f(x_i) + L1 z_i and accumulate the predicted mean of step t+1
+        for p in range(nx):
+            m[p] = 0.0
+        chk = 0.0
         for i in range(N):
             f_point(x[i], ut, t, fx)
-            fin = True
+            wi = w[i]
             for p in range(nx):
-                s = fx[p]
-                for q in range(p + 1):
-                    s += L1[p, q] * z[k, i, q]
-                xn[i, p] = s
-                if not np.isfinite(s):
-                    fin = False
-            if not fin:
-                anybad = True
-                logw[i] = -np.inf
+                if diag1:
+                    v = fx[p] + d1[p] * z[k, i, p]
+                else:
+                    v = fx[p]
+                    for q in range(p + 1):
+                        v += L1[p, q] * z[k, i, q]
+                xn[i, p] = v
+                chk += v - v                        # NaN once any entry is non-finite
+                m[p] += wi * v
         x, xn = xn, x
-        swaps += 1
-        if anybad:
-            flags[t] |= 4
-            amax = -np.inf
+        if chk != 0.0:
+            anybad = False
             for i in range(N):
-                if logw[i] > amax:
-                    amax = logw[i]
-            s = 0.0
-            for i in range(N):
-                s += np.exp(logw[i] - amax)
-            lse = amax + np.log(s)
-            for i in range(N):
-                w[i] = np.exp(logw[i] - lse)
-            _systematic_into(x, w, uu[k], xn)
-            x, xn = xn, x
-            swaps += 1
-            for i in range(N):
-                logw[i] = -np.log(N)
-                w[i] = 1.0 / N
-    if swaps % 2 == 1:          # the particles must end in the caller's array
+                for p in range(nx):
+                    if not np.isfinite(x[i, p]):
+                        logw[i] = -np.inf
+                        anybad = True
+            if anybad:
+                flags[t] |= 4
+                amax = -np.inf
+                for i in range(N):
+                    if logw[i] > amax:
+                        amax = logw[i]
+                s = 0.0
+                for i in range(N):
+                    s += np.exp(logw[i] - amax)
+                lse = amax + np.log(s)
+                for i in range(N):
+                    w[i] = np.exp(logw[i] - lse)
+                _systematic_into(x, w, uu[k], xn)
+                x, xn = xn, x
+                for i in range(N):
+                    logw[i] = -lnN
+                    w[i] = 1.0 / N
+            _wmoments(x, w, m, xp[t + 1], Pp[t + 1], False)
+        else:
+            for p in range(nx):
+                xp[t + 1, p] = m[p]
+    if x is not x0:             # the particles must end in the caller's array
         xn[:, :] = x
     return ll
+
+
+def _wcov(x, w, m, Pout):
+    """Weighted covariance sum_i w_i (x_i - m)(x_i - m)^T about the given mean m."""
+    N, nx = x.shape
+    for p in range(nx):
+        for q in range(nx):
+            Pout[p, q] = 0.0
+    for i in range(N):
+        for p in range(nx):
+            dp = w[i] * (x[i, p] - m[p])
+            for q in range(p + 1):
+                Pout[p, q] += dp * (x[i, q] - m[q])
+    for p in range(nx):
+        for q in range(p):
+            Pout[q, p] = Pout[p, q]
 
 
 def _moments(x, logw, w, m, mout, Pout, cov):
@@ -294,17 +331,16 @@ def weight_step(x, logw, yh, y, inv_sd, thr, u0, cov, mout, Pout, xbuf, w):
 
 
 def _systematic_into(x, w, u0, xn):
+    """xn <- x[idx], idx of pf.systematic_resample (searchsorted 'left' on the sequential cumulative sum,
+    which is accumulated on the fly here; same sums as np.cumsum)."""
     N, nx = x.shape
-    c = np.empty(N)
-    s = 0.0
-    for i in range(N):
-        s += w[i]
-        c[i] = s
     i = 0
+    c = w[0]
     for j in range(N):
         pos = (u0 + j) / N
-        while i < N - 1 and c[i] < pos:
+        while i < N - 1 and c < pos:
             i += 1
+            c += w[i]
         for p in range(nx):
             xn[j, p] = x[i, p]
 
@@ -342,6 +378,7 @@ if HAVE_NUMBA:
     propagate = numba.njit(cache=True)(propagate)
     _moments = numba.njit(cache=True)(_moments)
     _systematic = numba.njit(cache=True)(_systematic)
+    _wcov = numba.njit(cache=True)(_wcov)
     _chunk_loop_jit = numba.njit(_chunk_loop)
 
 
@@ -360,11 +397,17 @@ def run_fused(pf, u, y, covariances: bool = True) -> FilterResult:
     flags = np.zeros(T, np.int64)
     ll = 0.0
     K = pf.chunk
+    x = np.ascontiguousarray(x)
+    xn = np.empty_like(x)
     wcur = np.exp(logw)
+    m0 = np.empty(nx)
+    _wmoments(x, wcur, m0, xp[0], Pp[0], False)
+    diag2 = bool(pf._diag2)
     for c in range((T + K - 1) // K):
         z, uu = pf._draws(c)
-        ll += _chunk_loop_jit(f1, h1, x, logw, wcur, uu_, y_, missing, c * K, K, z, uu, pf.L1, pf.L2, pf._g0,
-                              pf.resample_threshold, xf, Pf, xp, Pp, ess, flags, covariances)
+        ll += _chunk_loop_jit(f1, h1, x, xn, logw, wcur, uu_, y_, missing, c * K, K, z, uu, pf.L1,
+                              bool(pf._diag1), pf.L2, pf._inv_sd2, diag2, pf._g0, pf.resample_threshold,
+                              xf, Pf, xp, Pp, ess, flags, covariances)
     # moments of the final prediction
     w = np.exp(logw - logw.max()); w /= w.sum()
     m = w @ x
