@@ -522,12 +522,10 @@ def filter_step(pf, x, logw, y, u, k: int):
     correct with y_k, take the weighted mean xi_k|k, predict with u_k.  Returns
     (x+, logw+, xi_hat (6), ess, degenerate) -- degenerate when every weight was zero (the filter then keeps
     the predicted particles instead of returning NaN)."""
-    from drake_est.estimation.pf import effective_sample_size
-    x, logw, ll = pf.correct(x, logw, y=y, u=u, t=k)
-    xi = pf.mean((x, logw))
-    ess = effective_sample_size(logw)
+    # the generic filter's correction step, which also returns the weighted mean and ESS it computes
+    x, logw, ll, (ess, _res, degenerate, xi, _P) = pf._correct(x, logw, y, u, k)
     x, logw = pf.predict(x, logw, u=u, t=k)
-    return x, logw, xi, ess, not np.isfinite(ll)
+    return x, logw, xi, ess, bool(degenerate)
 
 
 def pose_error(X_est, X_true) -> tuple[np.ndarray, np.ndarray]:
