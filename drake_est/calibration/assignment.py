@@ -70,6 +70,17 @@ def assign_scans_to_planes(points_base, scan_index, threshold: float, n_planes: 
     scans = [s for s in scans if len(s) >= 2]
     labels = np.full(len(P), -1)
     free = list(range(len(scans)))
+    # scans padded into one (S, L, 3) array (NaN padding) so a hypothesis is tested on all scans at once
+    L = max((len(s) for s in scans), default=0)
+    pad = np.full((len(scans), L, 3), np.nan)
+    for i, s in enumerate(scans):
+        pad[i, :len(s)] = P[s]
+    equal = all(len(s) == L for s in scans)
+
+    def scan_median(n, d, which):
+        r = np.abs(pad[which] @ n - d)
+        return np.median(r, axis=1) if equal else np.nanmedian(r, axis=1)
+
     k = 0
     while len(free) >= min_scans and (n_planes is None or k < n_planes):
         best, best_cost = None, np.inf
@@ -79,7 +90,7 @@ def assign_scans_to_planes(points_base, scan_index, threshold: float, n_planes: 
             n, d, s = fit_plane(pts)
             if s[1] < 1e-6 * s[0]:
                 continue  # two (nearly) collinear scans: no plane hypothesis
-            med = np.array([np.median(np.abs(P[scans[f]] @ n - d)) for f in free])
+            med = scan_median(n, d, free)
             inl = med < threshold
             cost = np.minimum(med, threshold).sum()
             if inl.sum() >= min_scans and cost < best_cost:
@@ -89,7 +100,8 @@ def assign_scans_to_planes(points_base, scan_index, threshold: float, n_planes: 
         # refit on all inlier scans, re-test
         pts = P[np.concatenate([scans[f] for f in best])]
         n, d, _ = fit_plane(pts)
-        best = [f for f in free if np.median(np.abs(P[scans[f]] @ n - d)) < threshold] or best
+        med = scan_median(n, d, free)
+        best = [f for f, m in zip(free, med) if m < threshold] or best
         for f in best:
             labels[scans[f]] = k
         free = [f for f in free if f not in best]

@@ -226,14 +226,22 @@ def _plane_checks(P_rb, labels, K, min_planes, idx, kind="2d"):
         normals.append(n)
 
 
-def _parallel_check(planes, min_planes):
+_PARALLEL_CONDITION = 300.0   # column-scaled condition number above which (nearly) parallel planes refuse
+
+
+def _parallel_check(planes, min_planes, cond=float("inf")):
+    """Planes whose normals do not span 3-D leave the translation along the common direction to the
+    variation of the flange orientations.  Refuse only when the problem actually solved (its condition
+    number ``cond``) is poorly determined as well: parallel planes scanned from strongly varied
+    orientations still determine T."""
     Nn = planes[:, :3]
     if min_planes >= 3:
         s = np.linalg.svd(Nn, compute_uv=False)
-        if len(s) < 3 or s[-1] < 0.05 * s[0]:
+        if (len(s) < 3 or s[-1] < 0.05 * s[0]) and not cond <= _PARALLEL_CONDITION:
             raise IdentifiabilityError(
-                "the scanned planes are (nearly) parallel or share a common direction, so the translation "
-                "along it is not determined; add a plane whose normal is roughly perpendicular to the others")
+                f"the scanned planes are (nearly) parallel or share a common direction and the poses do not "
+                f"make up for it (condition number {cond:.3g}), so the translation along it is not determined; "
+                "add a plane whose normal is roughly perpendicular to the others")
 
 
 def _excitation(A):
@@ -287,22 +295,8 @@ def calibrate_laser(poses, points, pose_index, labels=None, T0=None, n_iter: int
     T[:3, :3] = project_to_so3(T[:3, :3])
 
     if lab is None:
-
-        labels_used = assign_scans_to_planes(transform_points(P, T, pts, idx), idx, threshold=assign_threshold,
-                                             n_planes=n_planes, seed=seed)
-        result = None
-        for _round in range(4):
-            keep = labels_used >= 0
-            result = _iterate(P, pts[keep], idx[keep], labels_used[keep], T, n_iter, method, axes, kind, tol,
-                              min_planes, max_condition, joint_offsets)
-            T = result.T
-            thr = max(5.0 * result.rms, 1e-4)
-            new = assign_scans_to_planes(transform_points(P, T, pts, idx), idx, threshold=thr, n_planes=n_planes,
-                                         seed=seed)
-            if _same_partition(new, labels_used):
-                break
-            labels_used = new
-        labels_good = labels_used
+        result, labels_good = _auto_assign_checked(P, pts, idx, T, n_iter, method, axes, kind, tol, min_planes,
+                                                   max_condition, joint_offsets, n_planes, assign_threshold, seed)
     else:
         labs = lab[good]
         uniq = [u for u in np.unique(labs) if not (isinstance(u, (int, np.integer)) and u < 0)]
@@ -330,6 +324,130 @@ def calibrate_laser(poses, points, pose_index, labels=None, T0=None, n_iter: int
     return result
 
 
+def scan_noise_level(points, pose_index, axes) -> float:
+    """Measurement noise [m] estimated inside the scans, independent of T: the median over scans of the
+    RMS distance of a scan's points to the line (2-D scanner) or plane (3-D scanner) fitted to them in
+    sensor coordinates.  NaN for a point laser (a scan is one point) or when no scan has enough points."""
+    pts = np.asarray(points, float)
+    idx = np.asarray(pose_index)
+    axes = tuple(axes)
+    if len(axes) < 2:
+        return float("nan")
+    dof = 2 if len(axes) == 2 else 3   # line: 2 parameters, plane: 3
+    rms = []
+    for s in np.unique(idx):
+        q = pts[idx == s][:, axes]
+        if len(q) < dof + 3:
+            continue
+        sv = np.linalg.svd(q - q.mean(axis=0), compute_uv=False)
+        rms.append(float(sv[-1]) / np.sqrt(len(q) - dof))
+    return float(np.median(rms)) if rms else float("nan")
+
+
+def _plane_rms(result) -> np.ndarray:
+    K = len(result.planes)
+    return np.array([np.sqrt(np.mean(result.residuals[result.labels == j] ** 2)) for j in range(K)])
+
+
+def _split_by_offset(P, pts, idx, labels, result, sigma):
+    """Split planes whose residual is far above the noise into two by the signed offsets of their scans
+    (parallel planes at different offsets merged into one). Returns new labels or None."""
+    res = np.einsum("ni,ni->n", transform_points(P, result.T, pts, idx), result.planes[labels, :3]) \
+        - result.planes[labels, 3]
+    new = labels.copy()
+    K = int(labels.max()) + 1
+    changed = False
+    for j in range(K):
+        m = labels == j
+        if np.sqrt(np.mean(res[m] ** 2)) <= 4.0 * sigma:
+            continue
+        scans = np.unique(idx[m])
+        if len(scans) < 4:
+            continue
+        off = np.array([np.median(res[m & (idx == s)]) for s in scans])
+        o = np.sort(off)
+        gaps = np.diff(o)
+        # the largest gap with at least 2 scans on each side
+        if len(gaps) < 3:
+            continue
+        g = 1 + int(np.argmax(gaps[1:-1]))
+        cut = 0.5 * (o[g] + o[g + 1])
+        hi = scans[off > cut]
+        new[m & np.isin(idx, hi)] = K
+        K += 1
+        changed = True
+    return new if changed else None
+
+
+def _auto_assign(P, pts, idx, T, n_iter, method, axes, kind, tol, min_planes, max_condition, joint_offsets,
+                 n_planes, threshold, seed, sigma):
+    """Plane assignment by sequential RANSAC over scans, refined with the improving estimate: calibrate,
+    split planes whose residual is far above the noise by offset, re-assign with a threshold from the
+    residual; repeat until the partition is stable."""
+    labels_used = assign_scans_to_planes(transform_points(P, T, pts, idx), idx, threshold=threshold,
+                                         n_planes=n_planes, seed=seed)
+    result = None
+    for _round in range(8):
+        keep = labels_used >= 0
+        result = _iterate(P, pts[keep], idx[keep], labels_used[keep], T, n_iter, method, axes, kind, tol,
+                          min_planes, max_condition, joint_offsets)
+        T = result.T
+        if np.isfinite(sigma) and n_planes is None:
+            split = _split_by_offset(P, pts[keep], idx[keep], labels_used[keep], result, sigma)
+            if split is not None:
+                labels_used = labels_used.copy()
+                labels_used[keep] = split
+                continue
+        floor = 4.0 * sigma if np.isfinite(sigma) else 1e-4
+        thr = max(5.0 * result.rms, floor, 1e-4)
+        new = assign_scans_to_planes(transform_points(P, T, pts, idx), idx, threshold=thr, n_planes=n_planes,
+                                     seed=seed)
+        if _same_partition(new, labels_used):
+            break
+        labels_used = new
+    return result, labels_used
+
+
+def _auto_assign_checked(P, pts, idx, T0, n_iter, method, axes, kind, tol, min_planes, max_condition,
+                         joint_offsets, n_planes, threshold, seed):
+    """Automatic assignment that checks its own answer.
+
+    Restarts with coarser RANSAC thresholds (x1, x2.5, x5: a far initial guess scatters the scans of one
+    plane) and other seeds.  A restart's answer is accepted only when every plane's residual is at the
+    noise level measured inside the scans (:func:`scan_noise_level`); accepted answers must agree with
+    each other.  Otherwise an IdentifiabilityError asks for labels instead of guessing.
+    """
+    sigma = scan_noise_level(pts, idx, axes)
+    ask = "pass plane labels (one per point) or a closer initial guess T0"
+    sols, errors = [], []
+    for r, factor in enumerate((1.0, 2.5, 5.0)):
+        try:
+            res, lab = _auto_assign(P, pts, idx, T0, n_iter, method, axes, kind, tol, min_planes, max_condition,
+                                    joint_offsets, n_planes, threshold * factor, seed + 1000 * r, sigma)
+        except IdentifiabilityError as e:
+            errors.append(str(e).split(";")[0])
+            continue
+        prms = _plane_rms(res)
+        if np.isfinite(sigma) and np.max(prms) > max(4.0 * sigma, 1e-4):
+            j = int(np.argmax(prms))
+            errors.append(f"plane {j} fits to {prms[j] * 1e3:.3g} mm RMS, noise level {sigma * 1e3:.3g} mm")
+            continue
+        for other, _ in sols:
+            et, er = transform_error(res.T, other.T)
+            tol_t = max(3.0 * sigma, 2e-4) if np.isfinite(sigma) else 1e-3
+            if et > tol_t or er > np.radians(0.1):
+                raise IdentifiabilityError(
+                    f"automatic plane assignment is ambiguous (restarts disagree by {et * 1e3:.3g} mm, "
+                    f"{np.degrees(er):.3g} deg); {ask}")
+        sols.append((res, lab))
+        if len(sols) == 2:
+            break
+    if not sols:
+        raise IdentifiabilityError(
+            f"automatic plane assignment failed its own check ({errors[0] if errors else 'no solution'}); {ask}")
+    return sols[0]
+
+
 def _same_partition(a, b) -> bool:
     if a.shape != b.shape:
         return False
@@ -351,7 +469,14 @@ def _iterate(P, pts, idx, labels, T, n_iter, method, axes, kind, tol, min_planes
     for it in range(1, n_iter + 1):
         T_new, A, _ = solve_transform(P, pts, idx, planes, labels, axes, method, joint_offsets)
         if it == 1:
-            cond, weak = _excitation(A)
+            # judge the problem actually solved: with joint offsets the plane distances are unknowns too
+            if joint_offsets:
+                D = np.zeros((len(A), K))
+                D[np.arange(len(A)), labels] = -1.0
+                cond, weak = _excitation(np.column_stack([A, D]))
+                weak = weak[:A.shape[1]]
+            else:
+                cond, weak = _excitation(A)
             if not np.isfinite(cond) or cond > max_condition:
                 names = [_NAMES[3 * a + j] for a in axes for j in range(3)] + ["p_x", "p_y", "p_z"]
                 worst = names[int(np.argmax(np.abs(weak)))]
@@ -368,7 +493,7 @@ def _iterate(P, pts, idx, labels, T, n_iter, method, axes, kind, tol, min_planes
         hist_prms.append([float(np.sqrt(np.mean(r[labels == j] ** 2))) for j in range(K)])
         if tol > 0 and step < tol:
             break
-    _parallel_check(planes, min_planes)
+    _parallel_check(planes, min_planes, cond)
     names = [_NAMES[3 * a + j] for a in axes for j in range(3)] + ["p_x", "p_y", "p_z"]
     weak_name = names[int(np.argmax(np.abs(weak)))] if weak is not None else ""
     return LaserCalibration(T=T, planes=planes, labels=labels, residuals=r, kind=kind, axes=tuple(axes),

@@ -75,12 +75,14 @@ def orthogonal_planes(rng, n_planes: int = 3, distance=(0.6, 1.0)) -> np.ndarray
 
 def random_laser_problem(rng, n_planes: int = 3, poses_per_plane: int = 10, noise: float = 0.5e-3,
                          n_rays: int = 16, fov_deg: float = 40.0, standoff=(0.15, 0.35), tilt_deg: float = 30.0,
-                         T_true=None, planes=None, axes=(0, 1)) -> LaserProblem:
+                         T_true=None, planes=None, axes=(0, 1), occlusion: bool = True) -> LaserProblem:
     """Scans of ``n_planes`` planes, ``poses_per_plane`` random sensor poses each (Sec. 13.2 simulation).
 
     Each pose looks at its plane from a random standoff, tilted up to ``tilt_deg`` from the normal and
     spun randomly about the viewing direction; Gaussian noise (std ``noise`` m) is added to the two
-    in-plane sensor coordinates.  Points on other planes hit first are kept with their true label.
+    in-plane sensor coordinates.  Points on other planes hit first are kept with their true label;
+    with ``occlusion=False`` each pose sees only its own plane (finite patches, e.g. a step and a wall
+    facing the same way, where an infinite plane in front would otherwise hide the one behind).
     """
     rng = np.random.default_rng(rng)
     T_true = random_sensor_transform(rng) if T_true is None else T_true
@@ -111,7 +113,11 @@ def random_laser_problem(rng, n_planes: int = 3, poses_per_plane: int = 10, nois
             c3 = 3 - view - axes[0]
             R_s[:, c3] = np.cross(R_s[:, (c3 + 1) % 3], R_s[:, (c3 + 2) % 3])
             T_s = make_pose(R_s, o)
-            P_s, L = scan_planes(T_s, planes, rays)
+            if occlusion:
+                P_s, L = scan_planes(T_s, planes, rays)
+            else:
+                P_s, L = scan_planes(T_s, planes[j:j + 1], rays)
+                L = np.where(L >= 0, j, -1)
             ok = L >= 0
             if ok.sum() < min(3, n_rays):
                 continue
@@ -125,6 +131,26 @@ def random_laser_problem(rng, n_planes: int = 3, poses_per_plane: int = 10, nois
             got += 1
     return LaserProblem(np.array(poses), np.concatenate(pts), np.concatenate(idx), np.concatenate(labs), T_true,
                         planes)
+
+
+def cell_planes(rng, n_planes: int = 4, n_near_parallel: int = 1, max_angle_deg: float = 15.0,
+                min_offset: float = 0.05, distance=(0.6, 1.0)) -> np.ndarray:
+    """Planes of a robot cell: ``n_planes`` - ``n_near_parallel`` (nearly) orthogonal ones plus
+    ``n_near_parallel`` planes within ``max_angle_deg`` of parallel to one of them, whose offset differs
+    from that plane's by at least ``min_offset`` [m] (a step, two walls facing the same way)."""
+    rng = np.random.default_rng(rng)
+    base = orthogonal_planes(rng, n_planes - n_near_parallel, distance)
+    extra = []
+    for k in range(n_near_parallel):
+        n0, d0 = base[k % len(base), :3], base[k % len(base), 3]
+        axis = np.cross(n0, rng.standard_normal(3))
+        axis /= np.linalg.norm(axis)
+        from drake_est.calibration.so3 import exp_so3
+
+        n = exp_so3(axis * np.radians(rng.uniform(0.0, max_angle_deg))) @ n0
+        off = rng.uniform(min_offset, 2 * min_offset + 0.1) * rng.choice([-1.0, 1.0])
+        extra.append(np.r_[n, d0 + off])
+    return np.vstack([base] + ([np.array(extra)] if extra else []))
 
 
 def random_ft_poses(rng, n: int = 100) -> np.ndarray:
