@@ -255,7 +255,8 @@ def ls_scan(x, y, freqs, Phi=None, chunk: int | None = None, jitter: float = 1e-
 
     def fast(xx, c, f, h):                    # one prepared NUFFT per harmonic, reused for every weight
         if h not in plans:
-            plans[h] = TrigSumPlan(xx, f, h, eps=eps, nthreads=nthreads, center=False)
+            base = plans[1.0].phase if (h == 2.0 and 1.0 in plans) else None
+            plans[h] = TrigSumPlan(xx, f, h, eps=eps, nthreads=nthreads, center=False, base_phase=base)
         return plans[h](c)
 
     diag = {}

@@ -74,7 +74,7 @@ class TrigSumPlan:
     vector (the LPV periodogram needs J + J(J+1)/2 of them).  See :func:`trig_sums`."""
 
     def __init__(self, x, freqs, harmonic: float = 1.0, eps: float = DEFAULT_EPS, nthreads: int | None = None,
-                 center: bool = True):
+                 center: bool = True, base_phase=None):
         import finufft
 
         x = np.asarray(x, dtype=float)
@@ -91,8 +91,11 @@ class TrigSumPlan:
             t = (2 * np.pi * dg) * xs
             if np.max(np.abs(t)) >= np.pi:             # fold onto [-pi, pi): exp(i k t) is 2 pi periodic
                 t = np.mod(t + np.pi, 2 * np.pi) - np.pi
-            a = (2 * np.pi * g_mid) * xs
-            self.phase = np.cos(a) + 1j * np.sin(a)
+            if base_phase is not None:                 # the harmonic-1 phase of the same grid: h = 2 is its square
+                self.phase = base_phase * base_phase
+            else:
+                a = (2 * np.pi * g_mid) * xs
+                self.phase = np.cos(a) + 1j * np.sin(a)
             self.plan = finufft.Plan(1, (self.F,), eps=eps, isign=1, nthreads=nthreads)
             self.plan.setpts(t)
         else:
@@ -158,12 +161,12 @@ def explained_ss(G: np.ndarray, b: np.ndarray, jitter: float = 1e-10) -> np.ndar
     """Batched explained sum of squares ``b^T G^-1 b`` (least-squares fit per frequency, Eq. (10.5)
     for one frequency), with a ``jitter * trace(G)/dim`` diagonal ridge for numerical safety."""
     d = G.shape[-1]
-    scale = np.trace(G, axis1=1, axis2=2) / d
     if d == 2:                # closed form (the plain periodogram): much faster than batched LAPACK
-        r = jitter * np.maximum(scale, 1e-300)
+        r = jitter * np.maximum(0.5 * (G[:, 0, 0] + G[:, 1, 1]), 1e-300)
         g11, g22, g12 = G[:, 0, 0] + r, G[:, 1, 1] + r, G[:, 0, 1]
         b1, b2 = b[:, 0], b[:, 1]
         return (g22 * b1 * b1 - 2.0 * g12 * b1 * b2 + g11 * b2 * b2) / (g11 * g22 - g12 * g12)
+    scale = np.trace(G, axis1=1, axis2=2) / d
     Gj = G + (jitter * np.maximum(scale, 1e-300))[:, None, None] * np.eye(d)[None]
     sol = np.linalg.solve(Gj, b[..., None])[..., 0]
     return np.einsum("oi,oi->o", b, sol)
