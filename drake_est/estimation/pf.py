@@ -167,7 +167,10 @@ class ParticleFilter(Filter):
         K = self.chunk
         rng = np.random.default_rng([self.seed, 1, c])
         # float32 normals: ~1.5x cheaper to draw, ample for process noise (used as float64 by every path)
-        z = rng.standard_normal((K, self.N, self.nx), dtype=np.float32)
+        z = self._chunk_cache.get("zbuf")
+        if z is None:                           # one buffer per filter, refilled in place (no page faults)
+            z = self._chunk_cache["zbuf"] = np.empty((K, self.N, self.nx), dtype=np.float32)
+        rng.standard_normal(dtype=np.float32, out=z)
         uu = rng.random(K)
         self._chunk_cache["c"] = (c, z, uu)
         return z, uu
@@ -497,14 +500,19 @@ class GaussianParticleFilter(ParticleFilter):
             # compiled internals (weighting, moments, resampling; the user's f and h stay numpy): same numbers
             x = np.ascontiguousarray(x)
             xbuf, wbuf = np.empty_like(x), np.empty(N)
+            abuf, kbuf = np.empty(N), np.empty(N, np.int64)
             Pdummy = np.empty((nx, nx))
-            ones = np.ones(self.ny)
+            need_mean = True          # xp[t] is accumulated by propagate, except at t = 0 / after repairs
         for t in range(T):
             if jit is not None:
                 k = t % K
                 if k == 0:
                     z, uu = self._draws(t // K)
-                jit.moments(x, w, covariances, xp[t], Pp[t] if covariances else Pdummy)
+                if need_mean:
+                    jit.moments(x, w, False, xp[t], Pdummy)
+                    need_mean = False
+                if covariances:
+                    jit.wcov(x, w, xp[t], Pp[t])
                 ut = None if u is None else u[t]
                 status = -1
                 if not missing[t]:
@@ -512,7 +520,8 @@ class GaussianParticleFilter(ParticleFilter):
                     if diag2:
                         status, l_t, e = jit.weight_step(x, logw, (yh if yh.flags.c_contiguous and yh.dtype == np.float64 else np.ascontiguousarray(yh, dtype=float)), y[t],
                                                          inv_sd, thr, uu[k], covariances, xf[t],
-                                                         Pf[t] if covariances else Pdummy, xbuf, wbuf)
+                                                         Pf[t] if covariances else Pdummy, xbuf, wbuf,
+                                                         abuf, kbuf)
                     if status >= 0:
                         if status == 1:
                             x, xbuf = xbuf, x
@@ -548,10 +557,14 @@ class GaussianParticleFilter(ParticleFilter):
                 if not (xn.flags.c_contiguous and xn.dtype == np.float64):
                     xn = np.ascontiguousarray(xn, dtype=float)
                 # x = f(x) + L1 z in one compiled pass (both buffers are the filter's own arrays)
-                finite = jit.propagate(xn, z[k], self.L1, self._diag1, xbuf)
+                if w is not wbuf:
+                    wbuf[:] = w
+                    w = wbuf
+                finite = jit.propagate(xn, z[k], self.L1, self._diag1, xbuf, w, xp[t + 1])
                 x = xbuf
                 xbuf = x_old
                 if not finite:
+                    need_mean = True
                     bad = ~np.isfinite(x).all(axis=1)
                     if bad.any():
                         x, logw = self._replace_bad(x, np.where(bad, -np.inf, logw), t)

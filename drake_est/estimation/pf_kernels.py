@@ -285,16 +285,17 @@ def _systematic(x, w, u0, c, xn):
     x[:, :] = xn
 
 
-def weight_step(x, logw, yh, y, inv_sd, thr, u0, cov, mout, Pout, xbuf, w):
-    """One measurement update of the generic Gaussian PF (user's h already evaluated: yh (N, ny)).
+def weight_step(x, logw, yh, y, inv_sd, thr, u0, cov, mout, Pout, xbuf, w, a, kbuf):
+    """One measurement update of the generic Gaussian PF (thesis Algorithm 1, weighting and resampling;
+    the user's h already evaluated: yh (N, ny)); ``a`` (N,) and ``kbuf`` (N,) int64 are scratch.
 
-    a_i = logw_i - 0.5 |(yh_i - y) * inv_sd|^2; normalises into ``logw``, writes the weighted mean (and
-    covariance) of x, resamples into ``xbuf`` when ESS < thr.  Returns (status, log-sum, ess): status -1
+    a_i = logw_i - 0.5 |(yh_i - y) * inv_sd|^2; normalises into ``logw`` and ``w``, writes the weighted mean
+    (and covariance) of x, resamples into ``xbuf`` when ESS < thr.  Returns (status, log-sum, ess): status -1
     = every weight zero / non-finite (nothing modified; the caller takes the general path), 0 = weighted,
     1 = weighted and resampled (the particles are in ``xbuf``)."""
     N, ny = yh.shape
+    nx = x.shape[1]
     amax = -np.inf
-    a = np.empty(N)
     for i in range(N):
         q = 0.0
         for p in range(ny):
@@ -306,18 +307,24 @@ def weight_step(x, logw, yh, y, inv_sd, thr, u0, cov, mout, Pout, xbuf, w):
             amax = ai
     if not np.isfinite(amax):
         return -1, 0.0, 0.0
-    vexp(a, amax, w, np.empty(N, np.int64))
+    vexp(a, amax, w, kbuf)
     s = 0.0
     for i in range(N):
         s += w[i]
     lse = amax + np.log(s)
     s2 = 0.0
+    inv_s = 1.0 / s
+    for p in range(nx):
+        mout[p] = 0.0
     for i in range(N):
-        w[i] /= s
-        s2 += w[i] * w[i]
+        wi = w[i] * inv_s
+        w[i] = wi
+        s2 += wi * wi
+        for p in range(nx):
+            mout[p] += wi * x[i, p]
     ess = 1.0 / s2
-    m = np.empty(x.shape[1])
-    _wmoments(x, w, m, mout, Pout, cov)
+    if cov:
+        _wcov(x, w, mout, Pout)
     if ess < thr:
         _systematic_into(x, w, u0, xbuf)
         ln = -np.log(N)
@@ -345,23 +352,41 @@ def _systematic_into(x, w, u0, xn):
             xn[j, p] = x[i, p]
 
 
-def propagate(xn, z, L1, diag, out):
-    """out = xn + L1 z row by row (L1 lower triangular; only its diagonal when ``diag``); True when finite."""
+def propagate(xn, z, L1, diag, out, w, mout):
+    """out = xn + L1 z row by row (L1 lower triangular; only its diagonal when ``diag``) and
+    mout = sum_i w_i out_i (the predicted mean); True when every entry is finite."""
     N, nx = xn.shape
-    ok = True
-    for i in range(N):
+    chk = 0.0
+    for p in range(nx):
+        mout[p] = 0.0
+    if diag:
+        d = np.empty(nx)
         for p in range(nx):
-            if diag:
-                s = xn[i, p] + z[i, p] * L1[p, p]
-            else:
+            d[p] = L1[p, p]
+        for i in range(N):
+            wi = w[i]
+            for p in range(nx):
+                s = xn[i, p] + z[i, p] * d[p]
+                out[i, p] = s
+                chk += s - s
+                mout[p] += wi * s
+    else:
+        for i in range(N):
+            wi = w[i]
+            for p in range(nx):
                 s = 0.0
                 for q in range(p + 1):
                     s += z[i, q] * L1[p, q]
                 s = xn[i, p] + s
-            out[i, p] = s
-            if not np.isfinite(s):
-                ok = False
-    return ok
+                out[i, p] = s
+                chk += s - s
+                mout[p] += wi * s
+    return chk == 0.0
+
+
+def wcov(x, w, m, Pout):
+    """Weighted covariance about a given mean (compiled entry point of :func:`_wcov`)."""
+    _wcov(x, w, m, Pout)
 
 
 def moments(x, w, cov, mout, Pout):
@@ -372,13 +397,14 @@ def moments(x, w, cov, mout, Pout):
 
 if HAVE_NUMBA:
     _wmoments = numba.njit(cache=True)(_wmoments)
+    _wcov = numba.njit(cache=True)(_wcov)
+    wcov = numba.njit(cache=True)(wcov)
     _systematic_into = numba.njit(cache=True)(_systematic_into)
     weight_step = numba.njit(cache=True)(weight_step)
     moments = numba.njit(cache=True)(moments)
     propagate = numba.njit(cache=True)(propagate)
     _moments = numba.njit(cache=True)(_moments)
     _systematic = numba.njit(cache=True)(_systematic)
-    _wcov = numba.njit(cache=True)(_wcov)
     _chunk_loop_jit = numba.njit(_chunk_loop)
 
 
