@@ -170,7 +170,9 @@ def _hybrid_logD(d: float, sigma: float, k: int) -> float:
 def hybrid_logpdf(dx, d: float, sigma: float):
     """log of the hybrid uniform-Gaussian density Eq. (14.6) with Sigma = sigma^2 I for rows dx (N, k):
     log D inside the ball ||dx|| <= d, log D - (||dx|| - d)^2 / (2 sigma^2) outside;
-    D = 1 / ((2 pi)^(k/2) sigma^k + V(d, k))."""
+    D = 1 / ((2 pi)^(k/2) sigma^k + V(d, k)) -- the thesis' constant, exact for d = 0 or k = 1; for k > 1
+    and d > 0 it under-counts the Gaussian shell, which only shifts the log-likelihood by a constant per step
+    (the weights are unaffected)."""
     dx = np.asarray(dx, float)
     logD = _hybrid_logD(d, sigma, dx.shape[-1])
     r = np.sqrt((dx * dx).sum(-1))
@@ -258,7 +260,7 @@ def _seam_loglik_point(x, R_nom, p_nom, dp_r, dth_r, rob, T_S, meas, valid, radi
     S = T_S.shape[0]
     segs = np.zeros((S, max(1, knots.shape[0] - 1)), np.int64)
     nseg = np.zeros(S, np.int64)
-    _candidates_point(R_nom, p_nom, T_S, meas, knots, radius, segs, nseg)
+    _cand(R_nom, p_nom, T_S, meas, knots, radius, segs, nseg)
     c0 = -math.log(2 * math.pi * sigma * sigma)
     c1 = -0.5 * math.log(2 * math.pi * sigma_ang * sigma_ang)
     Rl = np.empty((3, 3))
@@ -350,6 +352,8 @@ def _seam_loglik_point(x, R_nom, p_nom, dp_r, dth_r, rob, T_S, meas, valid, radi
 
 
 _kernel = None
+# the compiled kernel calls the compiled candidate search (numba resolves this global at compile time)
+_cand = numba.njit(cache=True)(_candidates_point) if numba is not None else _candidates_point
 
 
 def candidate_segments(X_WS, m, knots, radius) -> np.ndarray:
@@ -374,12 +378,7 @@ def seam_loglik(x, R_nom, p_nom, dp_r, dth_r, rob, T_S, meas, valid, radius, kno
         numba_ok = use_numba()
     if numba_ok:
         if _kernel is None:
-            cand = numba.njit(cache=True)(_candidates_point)
-            g = dict(_seam_loglik_point.__globals__)
-            g["_candidates_point"] = cand
-            import types
-            f = types.FunctionType(_seam_loglik_point.__code__, g, "_seam_loglik_point")
-            _kernel = numba.njit(cache=False, fastmath=False)(f)
+            _kernel = numba.njit(cache=True, fastmath=False)(_seam_loglik_point)
         out = np.empty(x.shape[0])
         _kernel(np.ascontiguousarray(x, dtype=float), R_nom, p_nom, dp_r, dth_r, rob, T_S, meas, valid,
                 float(radius), knots, normals, float(sigma), float(sigma_ang), bool(use_angle), out)
