@@ -286,7 +286,7 @@ def write_meshcat_html(scn, res: LoopResult, cfg, path, meshcat=None, frames: in
 def _mc_job(args):
     seam_kind, sensors, seed, particles, overrides, quick = args
     os.environ.setdefault("DRAKE_EST_NO_PROGRESS", "1")
-    sc = ScenarioConfig(speed=0.1 if quick else 0.02)
+    sc = ScenarioConfig(speed=0.2 if quick else 0.1)      # 200 mm in 1 s (quick) or 2 s
     scn = make_scenario(thesis_seam(seam_kind), sc, seed=seed)
     cfg = filter_config_for(scn, sensors, particles, **overrides)
     res = run_loop(scn, cfg, closed_loop=False, seed=seed)
