@@ -13,6 +13,8 @@ gear_coupling                   qd_i, sign(qd_i) of the coupled joints i        
 payload                         ID with a mass at the flange (rigid body)        rigid body
 abrupt_change                   [qd, sign(qd)] 1[t >= t_c]                        Ch. 7, (7.8)
 position_dependent_load         phi_k(q) (no sign): gravity/spring, generic axes  (added name)
+stribeck                        sign(qd) exp(-|qd/vs|^delta) (ks, vs)             (9.4), Sec. 9.1
+time_periodic_disturbance       cos/sin(2 pi f t), f in Hz (not scaling w. speed) Ch. 10 (in time)
 ==============================  ===============================================  =============
 """
 from __future__ import annotations
@@ -22,7 +24,7 @@ EFFECTS = ("position_dependent_friction", "motor_position_ripple", "energy_depen
            "asymmetric_coulomb", "gear_coupling", "payload", "abrupt_change")
 
 #: effect names beyond the fixed vocabulary (generic axes, whose nominal model has no gravity)
-EXTRA_EFFECTS = ("position_dependent_load",)
+EXTRA_EFFECTS = ("position_dependent_load", "stribeck", "time_periodic_disturbance")
 
 ALL_EFFECTS = EFFECTS + EXTRA_EFFECTS
 
@@ -32,4 +34,4 @@ def check_effect(name: str, allow_none: bool = True) -> str:
     from drake_est.errors import DataError
     if (allow_none and name == "none") or name in ALL_EFFECTS:
         return name
-    raise DataError(f"unknown effect '{name}'; choose from: none, {', '.join(EFFECTS)}")
+    raise DataError(f"unknown effect '{name}'; choose from: none, {', '.join(ALL_EFFECTS)}")

@@ -27,6 +27,9 @@ from drake_est.regression import ridge_solve
 ALPHA = 1e-4          # significance level of the held-out F-test
 MIN_GAIN = 0.02       # minimum relative reduction of the held-out RMSE of the affected joint(s)
 MAX_FINDINGS = 6
+#: a finding whose held-out score (log-likelihood gain minus AIC penalty) beats a significant competing
+#: explanation of the same joint(s) by less than this is reported "ambiguous between A and B"
+AMBIGUITY_MARGIN = 10.0
 
 
 @dataclass
@@ -189,6 +192,10 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             out.append(det.energy(jd, r, F_full, fit_train))
         if not have("abrupt_change"):
             out.append(det.change_point(jd, r))
+        if not have("stribeck"):
+            out.append(det.stribeck(jd, r, fit_inner))
+        if not have("time_periodic_disturbance"):
+            out.append(det.time_periodic(jd, r))
         if not have("gear_coupling") and len(prep.joints) > 1:
             out.append(det.coupling(jd, r, prep))
         if cache is not None:
@@ -222,6 +229,7 @@ class Step:
     fit: object
     validation: dict
     validation_joint: dict
+    competition: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -236,6 +244,23 @@ class DiagnosisResult:
     rejected: list
     timing: dict = field(default_factory=dict)
     sigma: dict = field(default_factory=dict)
+    unexplained: list = field(default_factory=list)
+
+
+def _competition(ext, tst, results) -> dict:
+    """The runner-up among the competing explanations of the same residual (other effects on the same
+    joint(s), judged on the same held-out data), the margin of the winner's score over it, and whether the
+    evidence separates them (``ambiguous`` when the runner-up is significant and the margin is below
+    :data:`AMBIGUITY_MARGIN`)."""
+    js = set(ext.cols)
+    rivals = [(e, t) for e, t, _, _ in results if e is not ext and e.effect != ext.effect and js & set(e.cols)]
+    if not rivals:
+        return {"runner_up": None, "margin": None, "ambiguous": False}
+    e2, t2 = max(rivals, key=lambda r: r[1]["score"])
+    margin = float(tst["score"] - t2["score"])
+    return {"runner_up": e2.effect, "runner_up_joint": int(e2.joint), "runner_up_score": float(t2["score"]),
+            "runner_up_significant": bool(t2["significant"]), "margin": margin,
+            "ambiguous": bool(t2["significant"] and margin < AMBIGUITY_MARGIN)}
 
 
 def _search(prep, max_findings, alpha, min_gain):
@@ -265,12 +290,14 @@ def _search(prep, max_findings, alpha, min_gain):
                         for e, t, _, _ in results]
             break
         ext, tst, f1, m1 = max(sig, key=lambda r: r[1]["score"])
+        competition = _competition(ext, tst, results)
         model = m1
         fit = f1
         accepted.add((ext.effect, None if ext.shared else ext.joint))
         changed = set(prep.joints) if (ext.shared or model.shared_exts()) else set(ext.cols)
         js = list(ext.cols)
-        steps.append(Step(ext, tst, f1, _val_metrics(prep, f1, js), {j: _val_metrics(prep, f1, [j]) for j in js}))
+        steps.append(Step(ext, tst, f1, _val_metrics(prep, f1, js), {j: _val_metrics(prep, f1, [j]) for j in js},
+                          competition))
     return fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma
 
 
@@ -302,5 +329,8 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
             break
         prep.meta.pop("payload_ext", None)
     fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma = out
+    from drake_est.diagnose.unexplained import residual_structure
+    unexplained = residual_structure(prep, fit)
     timing = {"prepare_s": t_prep, "total_s": time.perf_counter() - t0, "alpha": alpha, "min_gain": min_gain}
-    return DiagnosisResult(prep, fit0, nominal_val, nominal_joint, steps, fit, model, rejected, timing, sigma)
+    return DiagnosisResult(prep, fit0, nominal_val, nominal_joint, steps, fit, model, rejected, timing, sigma,
+                           unexplained)

@@ -340,3 +340,95 @@ def _rotor_of(prep):
     if meta is None:
         return None
     return (meta.gear_ratios, meta.rotor_inertias)
+
+
+#: Stribeck shape exponents delta tried (Sec. 9.1: 1 Tustin/exponential, 2 Gaussian)
+STRIBECK_DELTAS = (1.0, 2.0)
+#: a Stribeck velocity vs is identifiable when at least this fraction of the training samples move
+#: slower than 2 vs (else the exponential is indistinguishable from a constant over the data)
+STRIBECK_MIN_LOW = 0.05
+
+
+def stribeck_speeds(v_sel):
+    """Grid of Stribeck velocities vs over which the selected speeds can identify the term: from half the
+    slowest selected speed to a third of the 95 % speed (log spaced)."""
+    av = np.abs(v_sel)
+    lo, hi = float(np.quantile(av, 0.02)), float(np.quantile(av, 0.95))
+    if not (hi > 0 and lo > 0) or hi / lo < 3.0:
+        return np.array([])
+    return np.geomspace(0.5 * lo, hi / 3.0, 14)
+
+
+def stribeck(jd, r, fit_inner):
+    """Stribeck friction (Sec. 9.1, (9.4)): kc + ks exp(-|qd/vs|^delta), i.e. one extra column
+    sign(qd) exp(-|qd/vs|^delta) with ks linear; vs and delta chosen by the inner split.  None when the
+    selected speeds span less than a factor 3 (no low-speed data: untestable, see next_experiment)."""
+    v = jd.v[jd.rows]
+    grid = stribeck_speeds(v[jd.train])
+    if grid.size == 0:
+        return None
+    best = None
+    for delta in STRIBECK_DELTAS:
+        for vs in grid:
+            C = (_sgn(v) * np.exp(-np.abs(v / vs) ** delta))[:, None]
+            if np.mean(np.abs(v[jd.train]) < 2 * vs) < STRIBECK_MIN_LOW:
+                continue
+            err = fit_inner(C)
+            if best is None or err < best[0]:
+                best = (err, vs, delta, C)
+    if best is None:
+        return None
+    _, vs, delta, C = best
+    spec = {"effect": "stribeck", "vs": float(vs), "delta": float(delta)}
+    ev = {"stribeck_velocity": float(vs), "shape_exponent": float(delta),
+          "speed_range_selected": [float(np.min(np.abs(v))), float(np.max(np.abs(v)))]}
+    return Extension("stribeck", jd.joint, {jd.joint: C}, ["ks"], spec, ev)
+
+
+def time_periodic(jd, r, n_components=1):
+    """A torque periodic in *time* (pump, fan, neighbouring machine): the least-squares periodogram of
+    the training residual over time (the spectral tools of Ch. 10 with time as the sampling location,
+    :func:`~drake_est.spectral.detect.fft_scan`), beyond [sign(qd), qd]; the strongest frequency f [Hz]
+    gives columns cos, sin(2 pi f t).  Unlike the motor ripple its frequency does not scale with speed,
+    so on logs with several speeds the two are told apart by the held-out comparison."""
+    from drake_est.errors import DrakeEstError
+    from drake_est.spectral.detect import fft_scan
+
+    tr = jd.train
+    t = jd.t[jd.rows]
+    v = jd.v[jd.rows]
+    tt, rt = t[tr], r[tr]
+    T = float(np.ptp(tt))
+    if T <= 0 or tt.size < 50:
+        return None
+    from drake_est.spectral.detect import BINS_PER_PERIOD
+    h = float(np.median(np.diff(jd.t)))
+    max_fft = 1 << 20
+    f_max = min(0.45 / h, 0.98 * max_fft / (4.0 * T * BINS_PER_PERIOD))
+    try:
+        freqs, ess = fft_scan(tt, rt, Phi=np.column_stack([np.ones_like(tt)]), f_max=f_max, f_min=4.0 / T,
+                              max_fft=max_fft)
+    except DrakeEstError:
+        return None
+    if freqs.size == 0:
+        return None
+    f = float(freqs[int(np.argmax(ess))])
+    # refine the frequency off the scan grid (least squares over a fine local grid, +- one grid step)
+    df = float(freqs[1] - freqs[0]) if freqs.size > 1 else 0.0
+    if df > 0:
+        best = None
+        for fc in f + df * np.linspace(-1, 1, 41):
+            wc = 2 * np.pi * fc * tt
+            B = np.column_stack([np.ones_like(tt), np.cos(wc), np.sin(wc)])
+            e = rt - B @ np.linalg.lstsq(B, rt, rcond=None)[0]
+            if best is None or e @ e < best[0]:
+                best = (float(e @ e), float(fc))
+        f = best[1]
+    w = 2 * np.pi * f * t
+    C = np.column_stack([np.cos(w), np.sin(w)])
+    spec = {"effect": "time_periodic_disturbance", "frequencies_hz": [f]}
+    B = np.column_stack([np.ones_like(tt), C[tr]])
+    c = np.linalg.lstsq(B, rt, rcond=None)[0]
+    ev = {"frequency_hz": f, "amplitude_train": float(np.hypot(c[1], c[2])),
+          "speed_levels_rad_s": [float(x) for x in np.quantile(np.abs(v), [0.1, 0.5, 0.9])]}
+    return Extension("time_periodic_disturbance", jd.joint, {jd.joint: C}, ["a_cos", "a_sin"], spec, ev)

@@ -55,6 +55,24 @@ def write_plots(rep, out) -> list:
         r1 = (jd.y - res.final_fit.pred[j])[val]
         rows = jd.rows[val]
         data[j] = (jd, rows, r0, r1)
+    if res.unexplained:
+        xs = {"position": lambda jd, rows: jd.q[rows], "velocity": lambda jd, rows: jd.v[rows],
+              "acceleration": lambda jd, rows: jd.a[rows], "time": lambda jd, rows: jd.t[rows],
+              "time_correlation": lambda jd, rows: jd.t[rows],
+              "motor_position": lambda jd, rows: np.mod(jd.q[rows] * (jd.gear_ratio or 1.0), 2 * np.pi)}
+        U = res.unexplained[:4]
+        fig, axes = plt.subplots(len(U), 1, figsize=(10, 3.0 * len(U)), squeeze=False)
+        for ax, u in zip(axes[:, 0], U):
+            jd, rows, r0, r1 = data[u["joint"]]
+            ax.plot(xs[u["variable"]](jd, rows), r1, ".", ms=1.5, alpha=0.4)
+            ax.set_xlabel(u["variable"])
+            ax.set_ylabel("final residual")
+            ax.set_title(f"joint {u['joint']}: unexplained structure in {u['variable']} "
+                         f"({100 * u['share_of_residual_variance']:.1f} % of residual variance)")
+        fig.tight_layout()
+        fig.savefig(out / "unexplained.png", dpi=100)
+        plt.close(fig)
+        files.append("unexplained.png")
     specs = [("residual_time.png", "time [s]", lambda jd, rows: jd.t[rows]),
              ("residual_position.png", "arm position [rad]", lambda jd, rows: jd.q[rows]),
              ("residual_velocity.png", "velocity [rad/s]", lambda jd, rows: jd.v[rows])]

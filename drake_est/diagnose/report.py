@@ -170,8 +170,12 @@ class DiagnosisReport:
             f = {"effect": s.ext.effect, "joint": int(s.ext.joint), "score": s.test["score"], "evidence": ev,
                  "parameters": effect_parameters(res, s.ext, model_k, s.fit),
                  "validation": s.validation,
+                 "competition": s.competition,
+                 "status": "ambiguous" if s.competition.get("ambiguous") else "named",
                  "gain": {"rmse_ratio": nom_rmse / s.validation["rmse"],
                           "rmse_ratio_vs_previous_step": (prev.get(tuple(js), nom_rmse)) / s.validation["rmse"]}}
+            if s.competition.get("ambiguous"):
+                f["ambiguous_between"] = [s.ext.effect, s.competition["runner_up"]]
             if s.ext.shared:
                 f["joints"] = [int(j) for j in js]
             prev[tuple(js)] = s.validation["rmse"]
@@ -182,7 +186,10 @@ class DiagnosisReport:
                  "n_params": int(res.final_fit.n_params),
                  "noise_estimate_nm": {str(j): float(np.sqrt(res.final_fit.rss_val[j] / prep.joints[j].val.sum()))
                                        for j in prep.joints}}
+        from drake_est.diagnose.unexplained import next_experiments
         out = {"data": data, "nominal": nominal, "findings": findings, "final": final,
+               "unexplained": res.unexplained,
+               "next_experiment": next_experiments(prep, res.steps, float(log.duration)),
                "not_found": sorted([{k: v for k, v in r.items()} for r in res.rejected],
                                    key=lambda r: -r["score"])[:8],
                "settings": {"alpha": res.timing.get("alpha"), "min_rmse_reduction": res.timing.get("min_gain")},
@@ -280,6 +287,12 @@ def markdown(d: dict) -> str:
         L.append(f"Cause: {EFFECT_TEXT.get(f['effect'], f['effect'])}.")
         L.append(f"Evidence: {ev['test']}, F = {ev['F']:.4g} with {ev['dof']} degrees of freedom, p = {ev['p_value']:.3g}; "
                  f"held-out RMSE reduced by {100 * ev['heldout_rmse_reduction']:.1f} % (score {f['score']:.4g}).")
+        c = f.get("competition") or {}
+        if c.get("runner_up"):
+            L.append(f"Competing explanation: runner-up `{c['runner_up']}` (joint {c['runner_up_joint']}), beaten by "
+                     f"{c['margin']:.4g} in held-out score" + (" -- **ambiguous between "
+                     f"`{f['effect']}` and `{c['runner_up']}`**: the evidence does not separate them." if c.get("ambiguous")
+                     else "."))
         L.append("Parameters: " + ", ".join(f"{a} = {_fmt(b)}" for a, b in f["parameters"].items()
                                             if not isinstance(b, list) or len(b) <= 4))
         v = f["validation"]
@@ -290,6 +303,19 @@ def markdown(d: dict) -> str:
     L += ["## The extended model", "",
           f"Effects: {', '.join(d['final']['effects']) or 'none (nominal)'}; held-out RMSE **{fv['rmse']:.4g} N m** "
           f"(nominal {nv['rmse']:.4g}), gain x{d['final']['gain']['rmse_ratio']:.3g}."]
+    L += ["", "## Unexplained", ""]
+    if not d.get("unexplained"):
+        L.append("The final held-out residual shows no remaining structure (dependence on position, velocity, "
+                 "acceleration, time, or correlation in time) at the fixed false-alarm rate.")
+    for u in d.get("unexplained", []):
+        L.append(f"- joint {u['joint']}: structure in **{u['variable']}** ({u['test']}, p = {u['p_value']:.3g}), "
+                 f"{100 * u['share_of_residual_variance']:.1f} % of the residual variance; no cause named.")
+    if "unexplained.png" in files:
+        L.append("\n![unexplained](unexplained.png)")
+    if d.get("next_experiment"):
+        L += ["", "## Next experiment", ""]
+        for e in d["next_experiment"]:
+            L.append(f"- {e['reason']}: {e['experiment']}")
     if "simulation" in d:
         s = d["simulation"]
         L += ["", "## Simulation error (Sec. 3.1)", "",

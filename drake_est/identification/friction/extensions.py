@@ -85,6 +85,11 @@ def columns_at(spec, q, v, t, others=None, E_unit=None, sign=None):
         return s[:, None] * gaussian_features(q, np.asarray(spec["centers"]), spec["width"])
     if kind == "position_dependent_load":
         return gaussian_features(q, np.asarray(spec["centers"]), spec["width"])
+    if kind == "stribeck":
+        return (s * np.exp(-np.abs(v / spec["vs"]) ** spec["delta"]))[:, None]
+    if kind == "time_periodic_disturbance":
+        w = 2 * np.pi * np.outer(t, np.asarray(spec["frequencies_hz"], float))
+        return np.hstack([np.cos(w), np.sin(w)])
     if kind == "abrupt_change":
         H = (t >= spec["t_change"]).astype(float)
         return np.column_stack([v * H, s * H])
@@ -147,7 +152,7 @@ class ExtensionTerm(Term):
 
     @property
     def needs_time(self) -> bool:
-        return self.effect == "abrupt_change"
+        return self.effect in ("abrupt_change", "time_periodic_disturbance")
 
     def columns(self, Q, DQ, j, E=None, sign_eps=0.0, t=None):
         q, v = Q[:, j], DQ[:, j]
@@ -168,7 +173,8 @@ class ExtensionTerm(Term):
         return C
 
     def names(self):
-        n = {"asymmetric_coulomb": 1, "energy_dependent_friction": 1, "abrupt_change": 2}.get(self.effect)
+        n = {"asymmetric_coulomb": 1, "energy_dependent_friction": 1, "abrupt_change": 2, "stribeck": 1,
+             "time_periodic_disturbance": 2 * len(self.spec.get("frequencies_hz", [0]))}.get(self.effect)
         if n is None:
             if self.effect in ("position_dependent_friction", "position_dependent_load"):
                 n = len(self.spec["centers"])

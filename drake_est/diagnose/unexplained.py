@@ -1,0 +1,145 @@
+"""What the final model leaves: the "unexplained" verdict and the next experiment.
+
+:func:`residual_structure` tests the final *held-out* residual of every joint for remaining structure at
+a fixed family-wise false-alarm rate (Bonferroni over the tests):
+
+* dependence on a variable x in {q, qd, qdd, t} (and motor position q * gear ratio mod 1 rev when the gear
+  ratio is known): one-way analysis of variance of the residual over ``N_BINS`` quantile bins of x,
+  F = (SS_between / (B - 1)) / (SS_within / (n - B));
+* whiteness over time: regression of the residual on its ``N_LAGS`` previous held-out samples
+  (consecutive samples of the same validation block only), F-test of the lag coefficients.
+
+A structure is reported when its p-value is below ``ALPHA_UNEXPLAINED / n_tests`` *and* it holds at least
+``MIN_SHARE`` of the residual variance (between-bin or predictable share).  No cause is named for it.
+
+:func:`next_experiments` says which experiment would decide between candidates the log cannot separate
+or cannot test (too few low speeds, one speed only, too short for a thermal drift).
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.stats
+
+ALPHA_UNEXPLAINED = 1e-3
+MIN_SHARE = 0.03
+N_BINS = 20
+N_LAGS = 5
+#: a thermal (energy) drift with a time constant of about an hour needs a log this long [s] to be testable
+THERMAL_MIN_DURATION_S = 3600.0
+
+
+def _anova(x, e, n_bins=N_BINS):
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, n_bins + 1)))
+    if edges.size < 3:
+        return None
+    b = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, edges.size - 2)
+    B = int(b.max()) + 1
+    cnt = np.bincount(b, minlength=B).astype(float)
+    ok = cnt > 0
+    means = np.bincount(b, weights=e, minlength=B)[ok] / cnt[ok]
+    m = e.mean()
+    ss_b = float(np.sum(cnt[ok] * (means - m) ** 2))
+    ss_t = float(np.sum((e - m) ** 2))
+    ss_w = max(ss_t - ss_b, 1e-300)
+    k = int(ok.sum())
+    n = e.size
+    if n - k < 10 or k < 2:
+        return None
+    F = (ss_b / (k - 1)) / (ss_w / (n - k))
+    where = edges[1:][ok][int(np.argmax(np.abs(means - m)))]
+    return float(scipy.stats.f.sf(F, k - 1, n - k)), ss_b / max(ss_t, 1e-300), float(where)
+
+
+def _whiteness(e, block, n_lags=N_LAGS):
+    n = e.size
+    if n < 10 * n_lags:
+        return None
+    X = np.column_stack([np.roll(e, k) for k in range(1, n_lags + 1)])
+    same = np.ones(n, bool)
+    for k in range(1, n_lags + 1):
+        same &= np.roll(block, k) == block
+    same[:n_lags] = False
+    if same.sum() < 10 * n_lags:
+        return None
+    X, y = X[same], e[same]
+    c, *_ = np.linalg.lstsq(X, y, rcond=None)
+    rss1 = float(np.sum((y - X @ c) ** 2))
+    rss0 = float(y @ y)
+    m = y.size
+    F = ((rss0 - rss1) / n_lags) / (rss1 / max(m - n_lags, 1))
+    p = float(scipy.stats.f.sf(F, n_lags, m - n_lags)) if F > 0 else 1.0
+    return p, 1.0 - rss1 / max(rss0, 1e-300), float(c[0])
+
+
+def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) -> list:
+    """Remaining structure of the final held-out residual (list of dicts; empty when none)."""
+    from drake_est.diagnose.nominal import block_index
+    out = []
+    tests = []
+    for j, jd in prep.joints.items():
+        rows = jd.rows[jd.val]
+        e = (jd.y - fit.pred[j])[jd.val]
+        e = e - e.mean()
+        variables = {"position": jd.q[rows], "velocity": jd.v[rows], "acceleration": jd.a[rows], "time": jd.t[rows]}
+        if jd.gear_ratio:
+            variables["motor_position"] = np.mod(jd.q[rows] * jd.gear_ratio, 2 * np.pi)
+        for name, x in variables.items():
+            r = _anova(x, e)
+            if r is not None:
+                tests.append((j, name, r))
+        r = _whiteness(e, block_index(jd.t, rows))
+        if r is not None:
+            tests.append((j, "time_correlation", r))
+    n_tests = max(len(tests), 1)
+    for j, name, (p, share, where) in tests:
+        if p < alpha / n_tests and share >= min_share:
+            d = {"joint": int(j), "variable": name, "p_value": p, "share_of_residual_variance": float(share),
+                 "test": "autocorrelation F-test" if name == "time_correlation" else "ANOVA over 20 quantile bins"}
+            if name == "time_correlation":
+                d["lag1_coefficient"] = where
+            else:
+                d["largest_deviation_bin_upper_edge"] = where
+            out.append(d)
+    return sorted(out, key=lambda d: -d["share_of_residual_variance"])
+
+
+def next_experiments(prep, steps, duration) -> list:
+    """Experiments that would decide what this log cannot: ambiguous findings and untestable candidates."""
+    from drake_est.diagnose.detectors import stribeck_speeds
+    out = []
+    for s in steps:
+        c = s.competition or {}
+        if c.get("ambiguous"):
+            j = int(s.ext.joint)
+            jd = prep.joints.get(j)
+            pair = {s.ext.effect, c["runner_up"]}
+            exp = {"reason": f"ambiguous between {s.ext.effect} and {c['runner_up']}", "joint": j}
+            if pair == {"motor_position_ripple", "time_periodic_disturbance"} and jd is not None:
+                v = float(np.median(np.abs(jd.v[jd.rows])))
+                exp["experiment"] = (f"constant-speed sweeps of joint {j} at two more speeds, about "
+                                     f"{0.4 * v:.3g} and {2.0 * v:.3g} per s, over the same positions: a position "
+                                     "ripple keeps its cycles per rad, a time-periodic disturbance its Hz")
+                exp["speeds"] = [0.4 * v, 2.0 * v]
+            else:
+                exp["experiment"] = (f"a longer log of joint {j} with several constant speeds and both directions "
+                                     "over the full position range")
+            out.append(exp)
+    for j, jd in prep.joints.items():
+        v = np.abs(jd.v[jd.rows])
+        if stribeck_speeds(jd.v[jd.rows]).size == 0:
+            vmax = float(np.quantile(v, 0.95))
+            out.append({"reason": "stribeck untestable: too few low-speed samples", "joint": int(j),
+                        "speed_range": [0.01 * vmax, 0.3 * vmax],
+                        "experiment": f"constant-speed sweeps of joint {j} at 8 speeds from {0.01 * vmax:.3g} "
+                                      f"to {0.3 * vmax:.3g} per s (log spaced), 10 s each, both directions"})
+        lo, hi = np.quantile(v, [0.1, 0.9])
+        if hi < 1.3 * lo and not any(e.get("joint") == j and "ripple" in e.get("experiment", "") for e in out):
+            out.append({"reason": "one speed only: position-periodic and time-periodic cannot be told apart",
+                        "joint": int(j), "speeds": [float(0.4 * np.median(v)), float(2.0 * np.median(v))],
+                        "experiment": f"sweeps of joint {j} at {0.4 * np.median(v):.3g} and "
+                                      f"{2.0 * np.median(v):.3g} per s over the same positions"})
+    if duration < THERMAL_MIN_DURATION_S:
+        out.append({"reason": f"log too short ({duration:.0f} s) for an hour-long thermal drift",
+                    "duration_s": THERMAL_MIN_DURATION_S,
+                    "experiment": f"{THERMAL_MIN_DURATION_S / 60:.0f} min of continuous motion from a cold start"})
+    return out
