@@ -33,6 +33,12 @@ from drake_est.errors import DataError
 
 _QCOL = re.compile(r"^(q|dq|ddq|tau)(\d+)$")
 MIN_SAMPLES = 20
+# plausibility: magnitudes no machine produces (|value| above these, or a column scaled to ~0)
+MAX_ABS = {"q": 1e4, "dq": 1e5, "ddq": 1e7, "tau": 1e7}
+MAX_ABS_CHANNEL = 1e12
+MIN_DT, MAX_DURATION = 1e-6, 1e6       # [s]: 1 MHz sampling, 11.6 days
+MAX_GAP_FACTOR = 1000.0                 # a gap longer than this many median steps (and > 1 s) is refused
+MAX_FIELD = 1 << 16                     # a CSV field longer than this is not a number
 
 
 @dataclass
@@ -179,10 +185,17 @@ def smooth_derivatives(t, q, window_s: float | None = None, polyorder: int = 3, 
     t = np.asarray(t, dtype=float)
     q = _as_2d(q, "q")
     n = len(t)
+    if n < 2 or len(q) != n:
+        raise DataError(f"smooth_derivatives: t has {n} samples and q {len(q)}; need equal lengths >= 2")
     dts = np.diff(t)
     h = float(np.median(dts))
+    if not (np.isfinite(h) and h > 0):
+        raise DataError("smooth_derivatives: time stamps must be finite and strictly increasing")
     if window_s is None:
         window_s = 0.04
+    if not (isinstance(window_s, (int, float, np.floating, np.integer)) and np.isfinite(window_s)
+            and window_s > 0):
+        raise DataError(f"window_s must be a finite number of seconds > 0, got {window_s!r}")
     w = int(round(window_s / h))
     w = max(w, min_window)
     if w % 2 == 0:
@@ -196,6 +209,11 @@ def smooth_derivatives(t, q, window_s: float | None = None, polyorder: int = 3, 
         dq = scipy.signal.savgol_filter(q, w, polyorder, deriv=1, delta=h, axis=0, mode="interp")
         ddq = scipy.signal.savgol_filter(q, w, polyorder, deriv=2, delta=h, axis=0, mode="interp")
     else:
+        n_grid = (t[-1] - t[0]) / h + 1
+        if not n_grid <= 10 * n + 1000:   # bounded memory: a gap would blow up the uniform grid
+            i = int(np.argmax(dts))
+            raise DataError(f"time stamps have a gap of {dts[i]:.3g} s after data row {i + 1} (median step "
+                            f"{h:.3g} s); split the log at the gap")
         tu = np.arange(t[0], t[-1] + 0.5 * h, h)
         qu = np.column_stack([np.interp(tu, t, q[:, i]) for i in range(q.shape[1])])
         dqu = scipy.signal.savgol_filter(qu, w, polyorder, deriv=1, delta=h, axis=0, mode="interp")
@@ -212,29 +230,41 @@ def smooth_derivatives(t, q, window_s: float | None = None, polyorder: int = 3, 
 
 def _read_csv(path: Path):
     with open(path, newline="", encoding="utf-8-sig") as f:  # utf-8-sig: tolerate Excel's byte-order mark
-        reader = csv.reader(f)
+        # leading '# ...' lines are comments (before the header)
+        lines = (ln for ln in f if not ln.lstrip().startswith("#"))
+        reader = csv.reader(lines)
         try:
-            header = next(reader)
-        except StopIteration:
-            raise DataError(f"{path}: file is empty") from None
-        header = [h.strip() for h in header]
-        if len(header) == 1:
-            for sep, name in ((";", "semicolons"), ("\t", "tabs"), (" ", "spaces")):
-                if sep in header[0]:
-                    raise DataError(f"{path}: the header is separated by {name}; the format wants commas "
-                                    f"(t,q1,tau1,...)")
-        if not any(header):
-            raise DataError(f"{path}: first line must be a header naming the columns (t, q1, tau1, ...)")
-        dup = sorted({h for h in header if header.count(h) > 1})
-        if dup:
-            raise DataError(f"{path}: duplicated column name(s): {', '.join(dup)}")
-        rows = []
-        for lineno, row in enumerate(reader, start=2):
-            if not row or all(not c.strip() for c in row):
-                continue
-            if len(row) != len(header):
-                raise DataError(f"{path}: line {lineno} has {len(row)} fields, header has {len(header)}")
-            rows.append(row)
+            return _read_csv_rows(path, reader)
+        except csv.Error as err:
+            raise DataError(f"{path}: not a valid CSV near line {reader.line_num} ({err})") from None
+
+
+def _read_csv_rows(path: Path, reader):
+    try:
+        header = next(reader)
+    except StopIteration:
+        raise DataError(f"{path}: file is empty (or holds only '#' comment lines)") from None
+    header = [h.strip() for h in header]
+    if len(header) == 1:
+        for sep, name in ((";", "semicolons"), ("\t", "tabs"), (" ", "spaces")):
+            if sep in header[0]:
+                raise DataError(f"{path}: the header is separated by {name}; the format wants commas "
+                                f"(t,q1,tau1,...)")
+    if not any(header):
+        raise DataError(f"{path}: first line must be a header naming the columns (t, q1, tau1, ...)")
+    dup = sorted({h for h in header if header.count(h) > 1})
+    if dup:
+        raise DataError(f"{path}: duplicated column name(s): {', '.join(dup)}")
+    rows = []
+    for lineno, row in enumerate(reader, start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise DataError(f"{path}: line {lineno} has {len(row)} fields, header has {len(header)}")
+        if any(len(c) > MAX_FIELD for c in row):
+            raise DataError(f"{path}: line {lineno} has a field longer than {MAX_FIELD} characters; "
+                            "not a number (damaged file?)")
+        rows.append(row)
     if not rows:
         raise DataError(f"{path}: no data rows after the header")
     try:
@@ -256,14 +286,30 @@ def _read_npz(path: Path):
         z = np.load(path, allow_pickle=False)
     except Exception as err:  # noqa: BLE001 - any unreadable file becomes a one-line DataError
         raise DataError(f"{path}: not a readable NPZ file ({err.__class__.__name__})") from None
+    if not hasattr(z, "files"):
+        raise DataError(f"{path}: a single .npy array, not an NPZ archive of named columns (t, q1, tau1, ...)")
+    with z:
+        return _read_npz_members(path, z)
+
+
+def _read_npz_members(path: Path, z):
     cols, meta = {}, {}
     for k in z.files:
         try:
             val = z[k]
-        except ValueError:
-            raise DataError(f"{path}: array '{k}' holds Python objects; save plain numeric arrays") from None
+        except ValueError as err:
+            if "pickle" in str(err).lower() or "object" in str(err).lower():
+                raise DataError(f"{path}: array '{k}' holds Python objects; save plain numeric arrays") from None
+            raise DataError(f"{path}: array '{k}' is damaged ({err.__class__.__name__})") from None
+        except Exception as err:  # noqa: BLE001 - corrupt/truncated member, unsupported compression
+            raise DataError(f"{path}: array '{k}' is damaged or truncated ({err.__class__.__name__})") from None
         if k == "meta_json":
-            meta = json.loads(str(val))
+            try:
+                meta = json.loads(str(val))
+            except ValueError:
+                raise DataError(f"{path}: 'meta_json' is not valid JSON") from None
+            if not isinstance(meta, dict):
+                raise DataError(f"{path}: 'meta_json' must be a JSON object, got a {type(meta).__name__}")
             continue
         arr = np.asarray(val)
         if arr.dtype.kind not in "fiub":
@@ -295,6 +341,8 @@ def load_log(path, require_tau: bool = True, derivatives: bool = True, limits=No
         raise DataError(f"file not found: {path}")
     if path.is_dir():
         raise DataError(f"{path} is a folder, expected a .csv or .npz log")
+    if not path.is_file():
+        raise DataError(f"{path} is not a regular file (a pipe or device?); save the log to a file first")
     suffix = path.suffix.lower()
     meta = {"file": str(path)}
     if suffix == ".npz":
@@ -316,11 +364,18 @@ def log_from_columns(cols: dict, source: str = "<arrays>", meta=None, require_ta
     if "t" not in cols:
         raise DataError(f"{source}: missing time column 't' (have: {', '.join(cols)})")
     groups = {"q": {}, "dq": {}, "ddq": {}, "tau": {}}
+    names = {"q": {}, "dq": {}, "ddq": {}, "tau": {}}
     channels = {}
     for name, arr in cols.items():
         m = _QCOL.match(name)
         if m:
-            groups[m.group(1)][int(m.group(2))] = np.asarray(arr, dtype=float)
+            kind, j = m.group(1), int(m.group(2))
+            if j == 0:
+                raise DataError(f"{source}: column '{name}' names joint 0; joints are numbered from 1 (q1, tau1, ...)")
+            if j in names[kind]:
+                raise DataError(f"{source}: columns '{names[kind][j]}' and '{name}' both name joint {j}; keep one")
+            names[kind][j] = name
+            groups[kind][j] = np.asarray(arr, dtype=float)
         elif name != "t":
             channels[name] = np.asarray(arr, dtype=float)
     if not groups["q"]:
@@ -334,6 +389,11 @@ def log_from_columns(cols: dict, source: str = "<arrays>", meta=None, require_ta
         missing = [f"tau{j}" for j in joints if j not in groups["tau"]]
         if missing:
             raise DataError(f"{source}: missing torque column(s) {', '.join(missing)}")
+    if nan_policy not in ("raise", "drop"):
+        raise DataError(f"unknown nan_policy '{nan_policy}' (use 'raise' or 'drop')")
+    if window_s is not None and not (isinstance(window_s, (int, float, np.floating, np.integer))
+                                     and np.isfinite(window_s) and window_s > 0):
+        raise DataError(f"window_s must be a finite number of seconds > 0, got {window_s!r}")
     t = np.asarray(cols["t"], dtype=float)
     # -- NaN / inf
     allcols = {"t": t}
@@ -375,6 +435,8 @@ def log_from_columns(cols: dict, source: str = "<arrays>", meta=None, require_ta
         i = int(np.flatnonzero(dt < 0)[0])
         raise DataError(f"{source}: time stamps not increasing: t = {t[i]:g} at data row {i + 1} is followed by "
                         f"t = {t[i + 1]:g} ({int(np.sum(dt < 0))} decreasing steps in all)")
+    _check_time_units(t, source)
+    _check_magnitudes(groups, channels, source)
     q = np.column_stack([groups["q"][j] for j in joints])
     # -- plausibility against limits
     if limits:
@@ -404,6 +466,55 @@ def log_from_columns(cols: dict, source: str = "<arrays>", meta=None, require_ta
     if derivatives:
         log = log.with_derivatives(window_s=window_s)
     return log
+
+
+def _check_time_units(t, source):
+    """Refuse time stamps no robot log has: wrong units (ms, us, ns), absurd durations, huge gaps."""
+    dt = np.diff(t)
+    h = float(np.median(dt))
+    if h < MIN_DT:
+        raise DataError(f"{source}: median sample interval {h:.3g} s is implausibly short (over 1 MHz); "
+                        "the time column 't' must be in seconds")
+    if h >= 0.5 and np.all(t == np.round(t)):
+        unit = "nanoseconds or microseconds" if h >= 1000 else "milliseconds"
+        raise DataError(f"{source}: time stamps are integers with a median step of {h:.6g}; they look like "
+                        f"{unit}, the time column 't' must be in seconds")
+    if h >= 1000:
+        raise DataError(f"{source}: median sample interval {h:.3g} s is implausibly long; the time column 't' "
+                        "must be in seconds (nanoseconds or microseconds?)")
+    if abs(t[0]) > 1e11 or abs(t[-1]) > 1e11:
+        raise DataError(f"{source}: time stamps of magnitude {max(abs(t[0]), abs(t[-1])):.3g} s are implausible; "
+                        "the time column 't' must be in seconds")
+    if t[-1] - t[0] > MAX_DURATION:
+        i = int(np.argmax(dt))
+        raise DataError(f"{source}: the log spans {t[-1] - t[0]:.3g} s (largest step {dt[i]:.3g} s after data row "
+                        f"{i + 1}); implausible time stamps, or split the log")
+    i = int(np.argmax(dt))
+    if dt[i] > MAX_GAP_FACTOR * h and dt[i] > 1.0:
+        raise DataError(f"{source}: gap of {dt[i]:.3g} s in the time stamps after data row {i + 1} (median step "
+                        f"{h:.3g} s); split the log at the gap or fix the time stamp")
+
+
+def _check_magnitudes(groups, channels, source):
+    """Refuse magnitudes no machine produces (e.g. a cell of 1e300) and columns scaled to ~1e-300."""
+    for kind, limit in MAX_ABS.items():
+        for j, a in groups[kind].items():
+            _check_column(a, f"{kind}{j}", limit, source)
+    for name, a in channels.items():
+        _check_column(a, name, MAX_ABS_CHANNEL, source)
+
+
+def _check_column(a, name, limit, source):
+    if not len(a):
+        return
+    ab = np.abs(a)
+    i = int(np.argmax(ab))
+    if ab[i] > limit:
+        raise DataError(f"{source}: column '{name}' holds {a[i]:.3g} at data row {i + 1}, beyond any plausible "
+                        f"value (|{name}| <= {limit:.0e}); damaged cell or wrong units")
+    if 0 < ab[i] < 1e-30:
+        raise DataError(f"{source}: column '{name}' is scaled to ~{ab[i]:.1e} (all values below 1e-30); "
+                        "wrong units or a damaged column")
 
 
 def save_log(log: Log, path) -> Path:

@@ -70,26 +70,38 @@ class FTCalibration:
             "method": self.method,
             "R_S_TF": self.R.tolist(),
             "mass_kg": float(self.mass),
-            "com_sensor_m": self.com.tolist(),
-            "com_flange_m": self.com_flange.tolist(),
+            # without torque measurements the centre of mass is not determined: null, not NaN
+            "com_sensor_m": self.com.tolist() if np.all(np.isfinite(self.com)) else None,
+            "com_flange_m": self.com_flange.tolist() if np.all(np.isfinite(self.com)) else None,
             "force_bias_N": self.force_bias.tolist(),
             "torque_bias_Nm": self.torque_bias.tolist(),
             "condition_number": float(self.condition),
         }
         if self.residuals is not None:
-            out["residual_rms_force_N"] = float(np.sqrt(np.mean(self.residuals[:, :3] ** 2)))
-            out["residual_rms_torque_Nm"] = float(np.sqrt(np.mean(self.residuals[:, 3:] ** 2)))
+            out["residual_rms_force_N"] = _rms(self.residuals[:, :3])
+            out["residual_rms_torque_Nm"] = _rms(self.residuals[:, 3:])
         if self.raw_residuals is not None:
-            out["before_rms_force_N"] = float(np.sqrt(np.mean(self.raw_residuals[:, :3] ** 2)))
-            out["before_rms_torque_Nm"] = float(np.sqrt(np.mean(self.raw_residuals[:, 3:] ** 2)))
+            out["before_rms_force_N"] = _rms(self.raw_residuals[:, :3])
+            out["before_rms_torque_Nm"] = _rms(self.raw_residuals[:, 3:])
+        if not np.isfinite(out["condition_number"]):
+            out["condition_number"] = None
         if self.weak_direction is not None:
             out["weak_gravity_direction_flange"] = self.weak_direction.tolist()
         return out
 
 
+def _rms(a):
+    """RMS of the finite entries, None when there are none (e.g. torques of a force-only sensor)."""
+    a = np.asarray(a, float)
+    a = a[np.isfinite(a)]
+    return float(np.sqrt(np.mean(a**2))) if a.size else None
+
+
 def _check_inputs(poses, wrench):
     P = as_pose_stack(poses)
     W = np.asarray(wrench, dtype=float)
+    if len(P) == 0:
+        raise DataError("poses is empty: F/T calibration needs poses with different orientations")
     if W.ndim != 2 or W.shape[1] not in (3, 6):
         raise DataError(f"wrench must have shape (N, 6) [fx fy fz tx ty tz] or (N, 3), got {W.shape}")
     if len(P) != len(W):

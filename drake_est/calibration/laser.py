@@ -184,7 +184,13 @@ def _fit_planes(P_rb, labels, K):
 
 def _validate(poses, points, pose_index, labels, min_planes, min_points):
     P = as_pose_stack(poses)
-    pts = np.asarray(points, dtype=float)
+    if not np.all(np.isfinite(P)):
+        i = int(np.flatnonzero(~np.all(np.isfinite(P.reshape(len(P), -1)), axis=1))[0])
+        raise DataError(f"pose {i} contains NaN/inf; remove it (and its points)")
+    try:
+        pts = np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        raise DataError("laser points must be numeric, shape (N, 3)") from None
     if pts.ndim != 2 or pts.shape[1] not in (2, 3):
         raise DataError(f"laser points must have shape (N, 3) (or (N, 2) in the laser plane), got {pts.shape}")
     if pts.shape[1] == 2:
@@ -292,6 +298,8 @@ def calibrate_laser(poses, points, pose_index, labels=None, T0=None, n_iter: int
         if kind == "2d":
             axes = detect_kind(pts)[1] if detect_kind(pts)[0] == "2d" else (0, 1)
     T = np.eye(4) if T0 is None else as_matrix(T0).copy()
+    if not np.all(np.isfinite(T)):
+        raise DataError("T0 (initial guess of the sensor transform) contains NaN/inf")
     T[:3, :3] = project_to_so3(T[:3, :3])
 
     if lab is None:

@@ -53,13 +53,33 @@ def as_matrix(T) -> np.ndarray:
     raise DataError(f"expected a 4x4 pose (or RigidTransform), got shape {T.shape}")
 
 
-def as_pose_stack(poses) -> np.ndarray:
-    """(N, 4, 4) array from a list of RigidTransforms / 4x4 arrays or an (N, 4, 4) array."""
+def as_pose_stack(poses, check_rigid: bool = True, tol: float = 1e-3) -> np.ndarray:
+    """(N, 4, 4) array from a list of RigidTransforms / 4x4 arrays or an (N, 4, 4) array.
+
+    With ``check_rigid`` every finite pose must be a rigid transform (rotation block orthonormal with
+    determinant +1 within ``tol``, last row [0 0 0 1]); otherwise a DataError names the first bad pose.
+    Poses with NaN/inf are left to the caller (which reports them with its own row numbers)."""
     if isinstance(poses, np.ndarray) and poses.ndim == 3:
         if poses.shape[1:] != (4, 4):
             raise DataError(f"poses must have shape (N, 4, 4), got {poses.shape}")
-        return poses.astype(float)
-    return np.stack([as_matrix(T) for T in poses]) if len(poses) else np.zeros((0, 4, 4))
+        P = poses.astype(float)
+    elif isinstance(poses, np.ndarray) and poses.ndim != 3 and not (poses.ndim == 1 and poses.dtype == object):
+        raise DataError(f"poses must have shape (N, 4, 4), got {poses.shape}")
+    else:
+        P = np.stack([as_matrix(T) for T in poses]) if len(poses) else np.zeros((0, 4, 4))
+    if check_rigid and len(P):
+        fin = np.all(np.isfinite(P.reshape(len(P), -1)), axis=1)
+        R = P[:, :3, :3]
+        err = np.abs(np.einsum("nji,njk->nik", R, R) - np.eye(3)).max(axis=(1, 2))
+        det = np.linalg.det(np.where(fin[:, None, None], R, np.eye(3)))
+        row = np.abs(P[:, 3, :] - [0.0, 0.0, 0.0, 1.0]).max(axis=1)
+        bad = fin & ((err > tol) | (det < 0) | (row > tol))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            why = ("its last row is not [0 0 0 1]" if row[i] > tol else "its rotation is a reflection (det -1)"
+                   if det[i] < 0 else f"its rotation block is not orthonormal (|R^T R - I| = {err[i]:.2g})")
+            raise DataError(f"pose {i} is not a rigid transform: {why} ({int(bad.sum())} bad poses in all)")
+    return P
 
 
 def to_rigid_transform(T):

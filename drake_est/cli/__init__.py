@@ -76,6 +76,11 @@ def main(argv=None) -> int:
     except PermissionError as err:
         print(f"drake-est {args.command}: error: permission denied: {err.filename or err}", file=sys.stderr)
         return 2
+    except OSError as err:  # read-only file system, disk full, device errors: name the path
+        where = err.filename or "output file"
+        print(f"drake-est {args.command}: error: cannot read or write {where}: {err.strerror or err}",
+              file=sys.stderr)
+        return 2
     except UnicodeDecodeError:
         name = getattr(args, "log", None) or getattr(args, "data", None) or "input file"
         print(f"drake-est {args.command}: error: {name} is not a text CSV (binary or wrong encoding; "

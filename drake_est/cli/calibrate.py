@@ -128,6 +128,8 @@ def _parse_T0(text):
         raise DataError(f"--T0 needs 6 numbers 'x y z roll pitch yaw' [m, deg], got '{text}'") from None
     if len(vals) != 6:
         raise DataError(f"--T0 needs 6 numbers 'x y z roll pitch yaw' [m, deg], got {len(vals)}")
+    if not np.all(np.isfinite(vals)):
+        raise DataError(f"--T0 must hold 6 finite numbers, got '{text}'")
     return make_pose(rpy_to_matrix(np.radians(vals[3:])), vals[:3])
 
 
@@ -166,6 +168,9 @@ def run(args) -> int:
             else:
                 raise DataError(f"{path}: no wrench found; give 'wrench' (N,6) or columns fx,fy,fz[,tx,ty,tz]")
             W = np.asarray(W, float).copy()
+            if W.ndim != 2 or W.shape[1] not in (3, 6):
+                raise DataError(f"{path}: the wrench must have shape (N, 6) [fx fy fz tx ty tz] or (N, 3), "
+                                f"got {W.shape}")
             if W.shape[1] == 6:
                 W[:, 3:] *= scale
             res = calibrate_ft(P, W, method=args.method or "relaxation", bias=not args.no_bias, mass=args.mass)
@@ -199,9 +204,14 @@ def run(args) -> int:
                 raise DataError(f"{path}: no laser points found; give 'points' (N,3) + 'pose_index' or columns x,y[,z]")
             labels = tab.get("plane")
             if labels is not None:
-                labels = np.asarray(labels).astype(int)
+                try:
+                    labels = np.asarray(labels).astype(int)
+                except (TypeError, ValueError):
+                    raise DataError(f"{path}: plane labels ('plane') must be integers") from None
             T0 = _parse_T0(args.T0) if args.T0 else (np.asarray(tab["T0"], float) if "T0" in tab else None)
             if T0 is not None and args.T0 is None:
+                if T0.shape != (4, 4) or not np.all(np.isfinite(T0)):
+                    raise DataError(f"{path}: 'T0' must be a finite 4x4 transform, got shape {T0.shape}")
                 T0 = T0.copy()
                 T0[:3, 3] *= scale
             res = calibrate_laser(P, pts, idx, labels=labels, T0=T0, n_iter=args.iters, method=args.method or "ls",
@@ -232,6 +242,8 @@ def run(args) -> int:
         print(f"warning: {w.message}")
     summ["warnings"] = [str(w.message) for w in caught]
     out.mkdir(parents=True, exist_ok=True)
-    (out / f"calibrate_{args.sensor}.json").write_text(json.dumps(summ, indent=2))
+    from drake_est.jsonutil import dump_json
+
+    dump_json(summ, out / f"calibrate_{args.sensor}.json")
     print(f"wrote {out}/calibrate_{args.sensor}.json and a residual histogram")
     return 0

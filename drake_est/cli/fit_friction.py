@@ -45,8 +45,13 @@ from drake_est.cases.friction_fit import _robot, fit_log, format_table, plot_res
 def run(args) -> int:
     from drake_est.data import load_log
 
-    if not 0 < args.holdout < 1:
-        raise DrakeEstError(f"--holdout must be in (0, 1), got {args.holdout}")
+    from drake_est.cli._common import check_number
+
+    # a validation part of at least 5 % (and a training part of at least half) of the log
+    check_number("--holdout", args.holdout, 0.05, 0.5)
+    for name, val in (("--gear-ratio", args.gear_ratio), ("--v-min", args.v_min), ("--a-max", args.a_max),
+                      ("--width-factor", args.width_factor)):
+        check_number(name, val, 0, 1e6)
     for name, val, lo, strict in (("--gear-ratio", args.gear_ratio, 0, True), ("--v-min", args.v_min, 0, False),
                                   ("--a-max", args.a_max, 0, True), ("--n-position", args.n_position, 1, False),
                                   ("--width-factor", args.width_factor, 0, True),
@@ -77,7 +82,12 @@ def run(args) -> int:
     doc["log"] = str(args.log)
     doc["info"] = info
     doc["structure"].pop("energy_history", None)
-    (out / "params.json").write_text(json.dumps(doc, indent=2, default=to_jsonable))
+    from drake_est.jsonutil import dump_json, finite_or_none
+
+    sel = doc.get("selection")
+    if isinstance(sel, dict) and "a_max" in sel:
+        sel["a_max"] = finite_or_none(sel["a_max"])   # no acceleration limit: null, not Infinity
+    dump_json(doc, out / "params.json")
     if not args.no_plots:
         plot_result(res, out, title=f"joint {info['joint']}, model {args.model}")
     print(f"wrote {out / 'params.json'}" + ("" if args.no_plots else " and PNG plots"))

@@ -72,6 +72,11 @@ def run(args) -> int:
     for name, val in (("--f-max", args.f_max), ("--gear-ratio", args.gear_ratio)):
         if val is not None and not (np.isfinite(val) and val > 0):
             raise DataError(f"{name} must be a finite number > 0, got {val}")
+    from drake_est.cli._common import check_number
+
+    check_number("--n-components", args.n_components, 1, 50, integer=True)
+    check_number("--n-basis", args.n_basis, 1, 100, integer=True)
+    check_number("--gear-ratio", args.gear_ratio, 0, 1e5, lo_strict=True)
     if not 0 < args.level < 1:
         raise DataError(f"--level must be in (0, 1), e.g. 0.95, got {args.level}")
     out = Path(args.out)
@@ -135,7 +140,9 @@ def run(args) -> int:
         "base_explained_fraction": pc.base_explained_fraction,
         "files": files,
     }
-    (out / "spectrum.json").write_text(json.dumps(result, indent=2))
+    from drake_est.jsonutil import dump_json
+
+    dump_json(result, out / "spectrum.json")
     for c in result["components"]:
         f = c.get("frequency_per_motor_rev", c["frequency_per_unit"])
         print(f"{f:10.4f} {unit}: RMS amplitude {c['rms_amplitude']:.4g}, explains "

@@ -38,7 +38,13 @@ def run(args) -> int:
     from drake_est.data import save_log
     from drake_est.synth import synthesize
 
+    from drake_est.cli._common import check_number
+
     effects = args.effect or ["none"]
+    check_number("--duration", args.duration, 5, 1e5, unit="s")
+    check_number("--rate", args.rate, 10, 5000, unit="Hz")
+    check_number("--noise", args.noise, 0, 1e3, unit="N m")
+    check_number("--seed", args.seed, 0, 2**32 - 1, integer=True)
     if args.duration is not None and args.duration < 5:
         raise DrakeEstError(f"--duration {args.duration} s is too short (at least 5 s)")
     if args.noise is not None and not args.noise >= 0:

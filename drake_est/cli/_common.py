@@ -1,0 +1,28 @@
+"""Helpers shared by the CLI commands: validation of numeric options with one-line messages."""
+from __future__ import annotations
+
+import math
+
+from drake_est.errors import DataError
+
+
+def check_number(name: str, val, lo=None, hi=None, lo_strict: bool = False, hi_strict: bool = False,
+                 integer: bool = False, unit: str = ""):
+    """Refuse a numeric option that is NaN/inf or outside [lo, hi] (open ends with ``*_strict``).
+
+    ``None`` (option not given) passes.  The message names the option, its value and the range."""
+    if val is None:
+        return val
+    if integer and (isinstance(val, bool) or int(val) != val):
+        raise DataError(f"{name} must be an integer, got {val}")
+    v = float(val)
+    rng = (("(" if lo_strict else "[") + ("-inf" if lo is None else f"{lo:g}") + ", "
+           + ("inf" if hi is None else f"{hi:g}") + (")" if hi_strict else "]"))
+    u = f" {unit}" if unit else ""
+    if not math.isfinite(v):
+        raise DataError(f"{name} must be a finite number in {rng}{u}, got {val}")
+    if lo is not None and (v < lo or (lo_strict and v == lo)):
+        raise DataError(f"{name} must be in {rng}{u}, got {val:g}")
+    if hi is not None and (v > hi or (hi_strict and v == hi)):
+        raise DataError(f"{name} must be in {rng}{u}, got {val:g}")
+    return val
