@@ -55,6 +55,25 @@ def finite_or_none(x):
     return v if math.isfinite(v) else None
 
 
+def nonfinite_to_null(obj, where: str = "", found=None):
+    """Copy of a JSON-able tree with NaN/Infinity replaced by None, and the list of their key paths
+    (for results where 'undefined' is a legitimate outcome, e.g. a median over no successes: the caller
+    records the list, so nothing is hidden)."""
+    found = [] if found is None else found
+    if isinstance(obj, (float, np.floating)):
+        if not math.isfinite(float(obj)):
+            found.append(where or "<top level>")
+            return None, found
+        return obj, found
+    if isinstance(obj, np.ndarray):
+        return nonfinite_to_null(obj.tolist(), where, found)
+    if isinstance(obj, dict):
+        return {k: nonfinite_to_null(v, f"{where}.{k}" if where else str(k), found)[0] for k, v in obj.items()}, found
+    if isinstance(obj, (list, tuple)):
+        return [nonfinite_to_null(v, f"{where}[{i}]", found)[0] for i, v in enumerate(obj)], found
+    return obj, found
+
+
 def dumps_json(obj) -> str:
     """Strict JSON text: numpy-aware; NaN/Infinity refused with a DataError naming the key."""
     bad = find_nonfinite(obj)

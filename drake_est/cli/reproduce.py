@@ -41,6 +41,12 @@ def run(args) -> int:
     path = out / f"{args.name}.json"
     if isinstance(result, dict):
         result = {**result, "run": {"quick": bool(args.quick), "seed": args.seed}}
+    if isinstance(result, dict):   # undefined numbers (e.g. a median over no successes): null, listed
+        from drake_est.jsonutil import nonfinite_to_null
+
+        result, undefined = nonfinite_to_null(result)
+        if undefined:
+            result["undefined_numbers"] = undefined
     dump_json(result, path)
     if isinstance(result, dict):
         lines = _scalar_lines(result)
