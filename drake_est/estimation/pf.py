@@ -64,6 +64,32 @@ def systematic_resample(w, u0: float) -> np.ndarray:
     return idx
 
 
+def box_muller_f32(rng: np.random.Generator, out: np.ndarray, scratch: np.ndarray) -> None:
+    """Fill the float32 vector ``out`` with standard normals by the Box-Muller transform
+    z = sqrt(-2 ln(1 - U)) (cos 2 pi V, sin 2 pi V) of float32 uniforms U, V from ``rng``.
+
+    Used for the process noise of the Gaussian particle filter: with numpy's vectorised float32 log/sin/cos
+    it costs about 3.4 ns per normal against 8.7 ns for ``standard_normal(dtype=float32)`` (ziggurat) on the
+    benchmark machine.  Exact normal marginals up to float32 rounding, except that |z| <= 5.77 (the tail
+    beyond, probability 8e-9, is cut by the 2^-24 resolution of U).  Every filter path consumes the same
+    array, so they agree to rounding.  ``scratch``: float32 (2, >= ceil(n/2))."""
+    n = out.shape[0]
+    h = (n + 1) // 2
+    U, V = scratch[0, :h], scratch[1, :h]
+    rng.random(dtype=np.float32, out=U)
+    rng.random(dtype=np.float32, out=V)
+    np.subtract(np.float32(1.0), U, out=U)        # (0, 1]: log is finite
+    np.log(U, out=U)
+    np.multiply(U, np.float32(-2.0), out=U)
+    np.sqrt(U, out=U)
+    np.multiply(V, np.float32(2.0 * np.pi), out=V)
+    np.cos(V, out=out[:h])
+    np.multiply(out[:h], U, out=out[:h])
+    m = n - h
+    np.sin(V[:m], out=out[h:])
+    np.multiply(out[h:], U[:m], out=out[h:])
+
+
 def weighted_moments(x, w):
     """Weighted mean and covariance sum_i w_i (x_i - m)(x_i - m)^T of normalised weights."""
     m = w @ x
@@ -166,11 +192,11 @@ class ParticleFilter(Filter):
             return hit[1], hit[2]
         K = self.chunk
         rng = np.random.default_rng([self.seed, 1, c])
-        # float32 normals: ~1.5x cheaper to draw, ample for process noise (used as float64 by every path)
         z = self._chunk_cache.get("zbuf")
         if z is None:                           # one buffer per filter, refilled in place (no page faults)
             z = self._chunk_cache["zbuf"] = np.empty((K, self.N, self.nx), dtype=np.float32)
-        rng.standard_normal(dtype=np.float32, out=z)
+            self._chunk_cache["bm"] = np.empty((2, (z.size + 1) // 2), dtype=np.float32)
+        box_muller_f32(rng, z.reshape(-1), self._chunk_cache["bm"])
         uu = rng.random(K)
         self._chunk_cache["c"] = (c, z, uu)
         return z, uu
