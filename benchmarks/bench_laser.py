@@ -29,9 +29,10 @@ def main(argv=None):
     ap.add_argument("--out", default=None, help="folder for figures/JSON (default: a temporary folder)")
     ap.add_argument("--cells", type=int, default=0, help="run the automatic-assignment benchmark on N cells")
     ap.add_argument("--json", default=None, help="write the --cells counts to this JSON file")
+    ap.add_argument("--first", type=int, default=0, help="--cells: first cell index (to split a run over processes)")
     a = ap.parse_args(argv)
     if a.cells:
-        return cells(a.cells, a.seed, a.json)
+        return cells(a.cells, a.seed, a.json, a.first)
     import tempfile
 
     from drake_est.reproduce.calibration import laser_calibration
@@ -69,7 +70,7 @@ def make_cell(seed):
     return pr, T0, K, n_par
 
 
-def cells(n, seed=0, json_path=None):
+def cells(n, seed=0, json_path=None, first=0):
     import time
 
     import numpy as np
@@ -82,11 +83,11 @@ def cells(n, seed=0, json_path=None):
         et, er = transform_error(T, T_true)
         return et < 1e-3 and np.degrees(er) < 0.2
 
-    c = {"cells": n, "labelled_right": 0, "auto_right": 0, "auto_refused": 0, "auto_silently_wrong": 0,
+    c = {"cells": n, "first_cell": first, "labelled_right": 0, "auto_right": 0, "auto_refused": 0, "auto_silently_wrong": 0,
          "auto_right_where_labelled_right": 0, "auto_refused_where_labelled_right": 0,
          "cells_with_near_parallel_planes": 0, "auto_right_with_near_parallel_planes": 0}
     t_auto = 0.0
-    for i in range(n):
+    for i in range(first, first + n):
         pr, T0, K, n_par = make_cell(seed * 100003 + i)
         c["cells_with_near_parallel_planes"] += n_par > 0
         try:

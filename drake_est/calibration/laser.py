@@ -416,6 +416,9 @@ def _auto_assign(P, pts, idx, T, n_iter, method, axes, kind, tol, min_planes, ma
     return result, labels_used
 
 
+_RESIDUAL_FACTOR = 1.5   # accepted per-plane RMS / noise level measured inside the scans
+
+
 def _auto_assign_checked(P, pts, idx, T0, n_iter, method, axes, kind, tol, min_planes, max_condition,
                          joint_offsets, n_planes, threshold, seed):
     """Automatic assignment that checks its own answer.
@@ -436,7 +439,9 @@ def _auto_assign_checked(P, pts, idx, T0, n_iter, method, axes, kind, tol, min_p
             errors.append(str(e).split(";")[0])
             continue
         prms = _plane_rms(res)
-        if np.isfinite(sigma) and np.max(prms) > max(4.0 * sigma, 1e-4):
+        # at the right answer every plane fits to the noise level (RMS/sigma ~ 1 within a few %, planes
+        # hold >= tens of points); a merged or mixed plane, or a wrong local minimum, does not
+        if np.isfinite(sigma) and np.max(prms) > max(_RESIDUAL_FACTOR * sigma, 2e-5):
             j = int(np.argmax(prms))
             errors.append(f"plane {j} fits to {prms[j] * 1e3:.3g} mm RMS, noise level {sigma * 1e3:.3g} mm")
             continue

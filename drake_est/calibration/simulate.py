@@ -139,7 +139,14 @@ def cell_planes(rng, n_planes: int = 4, n_near_parallel: int = 1, max_angle_deg:
     ``n_near_parallel`` planes within ``max_angle_deg`` of parallel to one of them, whose offset differs
     from that plane's by at least ``min_offset`` [m] (a step, two walls facing the same way)."""
     rng = np.random.default_rng(rng)
-    base = orthogonal_planes(rng, n_planes - n_near_parallel, distance)
+    base = list(orthogonal_planes(rng, 3, distance))
+    cos_min = np.cos(np.radians(max_angle_deg))
+    while len(base) < n_planes - n_near_parallel:   # further planes: not within max_angle of any other
+        v = rng.standard_normal(3)
+        v /= np.linalg.norm(v)
+        if all(abs(v @ b[:3]) < cos_min for b in base):
+            base.append(np.r_[v, rng.uniform(*distance)])
+    base = np.array(base)
     extra = []
     for k in range(n_near_parallel):
         n0, d0 = base[k % len(base), :3], base[k % len(base), 3]
