@@ -21,6 +21,10 @@ EFFECT_TEXT = {
                      "(Eq. 9.12)",
     "payload": "an unmodeled mass at the flange (gravity and inertia regressors from Drake)",
     "abrupt_change": "friction parameters that change at an instant (piecewise-constant parameters, Ch. 7)",
+    "stribeck": "friction that rises towards standstill beyond Coulomb + viscous: kc + ks exp(-|qd/vs|^delta) "
+                "(Stribeck effect, Sec. 9.1)",
+    "time_periodic_disturbance": "a torque periodic in time whose frequency in Hz does not scale with the speed "
+                                 "(a pump, a fan, a neighbouring machine), not a position ripple",
     "position_dependent_load": "a direction-independent torque that depends on position (gravity, springs, "
                                "cables), which the generic axis model lacks",
 }
@@ -93,6 +97,10 @@ def effect_parameters(result, ext, model, fit) -> dict:
     elif ext.effect == "abrupt_change":
         d = {"t_change_s": ext.spec["t_change"], "kv_before": kv, "kc_before": kc, "kv_after": kv + c[0],
              "kc_after": kc + c[1]}
+    elif ext.effect == "stribeck":
+        d = {"kc": kc, "ks": float(c[0]), "vs": ext.spec["vs"], "delta": ext.spec["delta"], "kv": kv}
+    elif ext.effect == "time_periodic_disturbance":
+        d = {"frequency_hz": ext.spec["frequencies_hz"][0], "amplitude": float(np.hypot(c[0], c[1]))}
     elif ext.effect == "position_dependent_load":
         from drake_est.diagnose.detectors import gaussian_features
         qq = np.linspace(*ext.evidence["range_rad"], 200)
@@ -228,6 +236,12 @@ class DiagnosisReport:
                 extra = f", {ev['frequency_per_arm_rad']:.4g} cycles/rad"
             if "t_change_s" in ev:
                 extra = f", at t = {ev['t_change_s']:.4g} s"
+            if "frequency_hz" in ev:
+                extra = f", {ev['frequency_hz']:.4g} Hz"
+            if "stribeck_velocity" in ev:
+                extra = f", vs = {ev['stribeck_velocity']:.3g}"
+            if f.get("ambiguous_between"):
+                extra += f"; AMBIGUOUS between {' and '.join(f['ambiguous_between'])}"
             if "time_constant_s" in ev:
                 extra = f", tau_e = {ev['time_constant_s']:.4g} s"
             lines.append(f"FOUND {f['effect']} (joint {f['joint']}{extra}): p = {ev['p_value']:.2g}, held-out RMSE "
