@@ -428,7 +428,9 @@ class SeamTrackingModel:
         key = ("fk", tuple(np.asarray(q, float)))
         hit = self._cache.get(key)
         if hit is None:
-            hit = self.robot.forward_kinematics(q).GetAsMatrix4() @ self.X_FT
+            r = self.robot
+            r.plant.SetPositions(r.context, np.asarray(q, float))
+            hit = r.flange.CalcPoseInWorld(r.context).GetAsMatrix4() @ self.X_FT
             if len(self._cache) > 64:
                 self._cache.clear()
             self._cache[key] = hit
@@ -436,8 +438,12 @@ class SeamTrackingModel:
 
     def joint_torque(self, q, f) -> np.ndarray:
         """tau = J_v(q)^T f of a force f [N] at the TCP."""
-        J = self.robot.jacobian(q, offset=self.X_FT[:3, 3])
-        return J[3:].T @ np.asarray(f, float)
+        from pydrake.multibody.tree import JacobianWrtVariable
+        r = self.robot
+        r.plant.SetPositions(r.context, np.asarray(q, float))
+        Jv = r.plant.CalcJacobianTranslationalVelocity(r.context, JacobianWrtVariable.kV, r.flange, self.X_FT[:3, 3],
+                                                       r.plant.world_frame(), r.plant.world_frame())
+        return Jv.T @ np.asarray(f, float)
 
     def robot_measurement_pose(self, q_m, f) -> np.ndarray:
         """Mean of the robot measurement, Eq. (14.3): F_k(q_m + C_j(tau)) X_FT."""
