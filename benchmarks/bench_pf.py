@@ -5,6 +5,13 @@ Model: state (theta, theta', p, v), explicit Euler h = 0.01, theta'' = -(g/l) si
 known input u; T = 1000; x0 ~ N(0, 0.1 I); systematic resampling when ESS < N/2; the weighted mean and
 the log-likelihood every step.  Figure of merit: particle-steps per millisecond (N * T / time).
 
+Two figures per row: ``cpu_*`` from ``time.process_time()`` (CPU time of this single-threaded process: the
+primary figure on a loaded machine, where other processes inflate wall-clock time) and ``wall_*`` from
+``time.perf_counter()``; ``seconds``/``particle_steps_per_ms`` are the wall-clock ones.  Two floor rows time
+only the random numbers every filter needs (4 standard normals per particle-step, N * T * 4 in all):
+numpy's ``standard_normal`` (float64, what the hand-tuned filter uses) and drake_est's float32 Box-Muller
+(``pf.box_muller_f32``, what drake_est's filters use).
+
 Rows (all timed in the same run, interleaved, best of ``--repeat`` rounds; ``particles`` once):
   * ``drake_est fused (numba)``: ``ParticleFilter.gaussian(..., f_point=, h_point=)`` -- the model
     compiled per particle, one fused loop (random numbers drawn by numpy, included in the time);
@@ -22,6 +29,7 @@ from __future__ import annotations
 import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse
 import json
@@ -139,20 +147,29 @@ def particles_pf(u, y, N, seed=0):
 
 
 def _best(fun, repeat):
-    best, out = np.inf, None
+    """(best wall seconds, best CPU seconds, last output) over ``repeat`` calls."""
+    best_w = best_c = np.inf
+    out = None
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         out = fun()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
+        t1, c1 = time.perf_counter(), time.process_time()
+        best_w, best_c = min(best_w, t1 - t0), min(best_c, c1 - c0)
+    return best_w, best_c, out
+
+
+def _rate(N, T, sec):
+    return N * T / sec / 1e3
 
 
 def bench_pf(Ns=(500, 5000), T=1000, repeat=3, with_peers=True):
-    """Time every row at each N; returns a list of dicts (row, N, seconds, particle_steps_per_ms, ...).
+    """Time every row at each N; returns a list of dicts (row, N, seconds, particle_steps_per_ms [wall],
+    cpu_seconds, cpu_particle_steps_per_ms, loglik, rmse_theta).
 
     The rows of one N are timed *interleaved* (round r runs every row once) and the best round is kept, so a
     change in the machine's load during the run affects all rows alike."""
     from drake_est.estimation import ParticleFilter
+    from drake_est.estimation.pf import box_muller_f32
 
     u, y, X = simulate(T)
     R1, R2 = SIG_V ** 2 * np.eye(4), SIG_E ** 2 * np.eye(2)
@@ -163,34 +180,51 @@ def bench_pf(Ns=(500, 5000), T=1000, repeat=3, with_peers=True):
         gen = ParticleFilter.gaussian(f, h, R1, R2, np.zeros(4), 0.1 * np.eye(4), n_particles=N, seed=1, nu=1)
         t0 = time.perf_counter()
         fused.forward_trajectory(u[:5], y[:5], covariances=False)      # compile (not timed)
+        compile_fused = time.perf_counter() - t0
         gen.forward_trajectory(u[:5], y[:5], covariances=False)
         compile_s = time.perf_counter() - t0
+        M = N * T * 4
+        zbuf = np.empty(M)
+        z32, sc = np.empty(M, np.float32), np.empty((2, (M + 1) // 2), np.float32)
+        rng = np.random.default_rng(0)
         cands = {
             "drake_est fused (numba)": lambda: fused.forward_trajectory(u, y, covariances=False),
             "drake_est generic (numpy f, h)": lambda: gen.forward_trajectory(u, y, covariances=False),
             "drake_est generic + covariances": lambda: gen.forward_trajectory(u, y),
             "hand-tuned numpy (this model only)": lambda: handtuned_pf(u, y, N, seed=1),
+            "floor: numpy standard_normal, N*T*4 float64": lambda: rng.standard_normal(out=zbuf) is None,
+            "floor: drake_est Box-Muller, N*T*4 float32": lambda: box_muller_f32(rng, z32, sc) is None,
         }
-        best = {k: np.inf for k in cands}
+        best_w = {k: np.inf for k in cands}
+        best_c = {k: np.inf for k in cands}
         out = {}
         for _ in range(repeat):
             for name, fun in cands.items():
-                sec, out[name] = _best(fun, 1)
-                best[name] = min(best[name], sec)
+                w_, c_, out[name] = _best(fun, 1)
+                best_w[name] = min(best_w[name], w_)
+                best_c[name] = min(best_c[name], c_)
         for name in cands:
             r = out[name]
-            ll, xm = (r[1], r[0]) if isinstance(r, tuple) else (r.loglik, r.x_filt)
-            rows.append(dict(row=name, N=N, seconds=best[name], particle_steps_per_ms=N * T / best[name] / 1e3,
-                             loglik=float(ll), rmse_theta=float(np.sqrt(np.mean((xm[:, 0] - X[:, 0]) ** 2)))))
-        rows[-4]["compile_seconds"] = compile_s
+            row = dict(row=name, N=N, seconds=best_w[name], particle_steps_per_ms=_rate(N, T, best_w[name]),
+                       cpu_seconds=best_c[name], cpu_particle_steps_per_ms=_rate(N, T, best_c[name]),
+                       loglik=None, rmse_theta=None)
+            if not isinstance(r, bool):                # the floor rows return a bool
+                ll, xm = (r[1], r[0]) if isinstance(r, tuple) else (r.loglik, r.x_filt)
+                row.update(loglik=float(ll), rmse_theta=float(np.sqrt(np.mean((xm[:, 0] - X[:, 0]) ** 2))))
+            if name == "drake_est fused (numba)":
+                row["compile_seconds"] = compile_fused
+            if name == "drake_est generic (numpy f, h)":
+                row["compile_seconds"] = compile_s - compile_fused
+            rows.append(row)
         if with_peers:
             try:
                 import particles  # noqa: F401
             except ImportError:
                 continue
-            sec, ll = _best(lambda: particles_pf(u, y, N, seed=1), 1)
-            rows.append(dict(row="particles (Bootstrap + SMC)", N=N, seconds=sec,
-                             particle_steps_per_ms=N * T / sec / 1e3, loglik=float(ll), rmse_theta=None))
+            w_, c_, ll = _best(lambda: particles_pf(u, y, N, seed=1), 1)
+            rows.append(dict(row="particles (Bootstrap + SMC)", N=N, seconds=w_,
+                             particle_steps_per_ms=_rate(N, T, w_), cpu_seconds=c_,
+                             cpu_particle_steps_per_ms=_rate(N, T, c_), loglik=float(ll), rmse_theta=None))
     return rows
 
 
@@ -203,15 +237,22 @@ def main(argv=None):
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
     rows = bench_pf(tuple(a.N), a.T, a.repeat, not a.no_peers)
-    print(f"{'implementation':40s} {'N':>6s} {'time [s]':>9s} {'particle-steps/ms':>18s} {'loglik':>10s}")
+    print("particle-steps per millisecond (N * T / time); CPU = time.process_time() of this process, "
+          "wall = time.perf_counter(); load average " + ", ".join(f"{v:.1f}" for v in os.getloadavg()))
+    print(f"{'implementation':46s} {'N':>6s} {'CPU psteps/ms':>14s} {'wall psteps/ms':>15s} {'loglik':>10s}")
     for r in rows:
-        print(f"{r['row']:40s} {r['N']:6d} {r['seconds']:9.3f} {r['particle_steps_per_ms']:18.0f} {r['loglik']:10.1f}")
+        ll = "" if r["loglik"] is None else f"{r['loglik']:10.1f}"
+        print(f"{r['row']:46s} {r['N']:6d} {r['cpu_particle_steps_per_ms']:14.0f} "
+              f"{r['particle_steps_per_ms']:15.0f} {ll:>10s}")
     for N in a.N:
         by = {r["row"]: r for r in rows if r["N"] == N}
         g, ht = by["drake_est generic (numpy f, h)"], by["hand-tuned numpy (this model only)"]
-        print(f"N={N}: generic / hand-tuned speed ratio = "
-              f"{g['particle_steps_per_ms'] / ht['particle_steps_per_ms']:.2f}; fused / hand-tuned = "
-              f"{by['drake_est fused (numba)']['particle_steps_per_ms'] / ht['particle_steps_per_ms']:.2f}")
+        fu = by["drake_est fused (numba)"]
+        for kind, key in (("CPU", "cpu_particle_steps_per_ms"), ("wall", "particle_steps_per_ms")):
+            print(f"N={N} [{kind}]: generic / hand-tuned = {g[key] / ht[key]:.2f}; fused / hand-tuned = "
+                  f"{fu[key] / ht[key]:.2f}; fused = {fu[key]:.0f} psteps/ms (target 12,000)")
+        print(f"N={N}: compile time (not in the timings): fused {fu['compile_seconds']:.1f} s, generic "
+              f"{g['compile_seconds']:.1f} s")
     if a.json:
         from drake_est.jsonutil import dump_json
         dump_json({"T": a.T, "repeat": a.repeat, "rows": rows,
