@@ -238,7 +238,7 @@ def ls_scan(x, y, freqs, Phi=None, chunk: int | None = None, jitter: float = 1e-
         raise DataError("basis Phi contains NaN/inf")
     eps = DEFAULT_EPS if eps is None else float(eps)
     if method == "auto":
-        method = "direct" if (N * freqs.size <= 2e6 or freqs.size < 8) else "nufft"
+        method = "direct" if (N * freqs.size <= 2e6 or freqs.size < 8 or not _have_finufft()) else "nufft"
     xs = x - 0.5 * (float(np.min(x)) + float(np.max(x)))     # the periodogram is shift invariant
     chunk_elems = 4e6 if chunk is None else float(chunk) * N
 
@@ -285,6 +285,14 @@ def _ill_conditioned(S2d, m0d, T, tsum, limit: float) -> np.ndarray:
     if T is not None:
         c = np.maximum(c, cond(T, np.abs(tsum)).max(axis=0))
     return np.flatnonzero(c > limit)
+
+
+def _have_finufft() -> bool:
+    try:
+        import finufft  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def _progress_if_slow(N: int, F: int, seconds_per_point: float = 1.5e-7):
