@@ -91,7 +91,9 @@ def fft_scan(x, y, Phi=None, f_max: float | None = None, f_min: float | None = N
     ks = np.arange(k_min, k_max + 1)
     freqs = ks * df
     if method == "nufft":
-        return freqs, ls_scan(x, y, freqs, Phi, method="nufft")
+        from drake_est.spectral.lssa import _have_finufft
+
+        return freqs, ls_scan(x, y, freqs, Phi, method="nufft" if _have_finufft() else "direct")
     # conj(FFT) gives sum_b W(b) exp(+2 pi i k b / M); the e^{i w x0} factor restores absolute phase
     ph1 = np.exp(2j * np.pi * freqs * x0)
     ph2 = np.exp(4j * np.pi * freqs * x0)
