@@ -253,3 +253,23 @@ def test_time_gap_bounded_memory_in_derivatives():
         smooth_derivatives(t, np.sin(t))
     with pytest.raises(DataError, match="window_s"):
         smooth_derivatives(np.arange(50) * 0.01, np.zeros(50), window_s=-1.0)
+
+
+def test_api_validation_names_the_argument():
+    """Class 10: public functions raise the project's error naming the argument."""
+    from drake_est.errors import IdentifiabilityError
+    from drake_est.estimation.kalman import KalmanFilter
+    from drake_est.identification import ltv
+
+    A, C, Q, R, x0, P0 = np.eye(2), np.eye(1, 2), np.eye(2), np.eye(1), np.zeros(2), np.eye(2)
+    with pytest.raises(DataError, match="R1 is not positive"):
+        KalmanFilter(A, C, -Q, R, x0, P0)
+    with pytest.raises(DataError, match="A contains NaN"):
+        KalmanFilter(A * np.nan, C, Q, R, x0, P0)
+    with pytest.raises(DataError, match="time-varying A has 10 steps"):
+        KalmanFilter(np.stack([A] * 10), C, Q, R, x0, P0).smooth(None, np.zeros((50, 1)))
+    rng = np.random.default_rng(0)
+    with pytest.raises(IdentifiabilityError, match="too few samples"):
+        ltv.tv_select_lambda_ml(rng.standard_normal((2, 2)), rng.standard_normal(2))
+    with pytest.raises(DataError, match="lams"):
+        ltv.tv_select_lambda_ml(rng.standard_normal((50, 2)), rng.standard_normal(50), lams=[1.0, np.nan])

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_est.errors import DataError
+from drake_est.errors import DataError, IdentifiabilityError
 from drake_est.identification.ltv_common import _as_regression, _as_state_space, _poly, check_identifiable
 from drake_est.identification.ltv_smoother import _tv_smooth
 
@@ -17,15 +17,21 @@ def _select(Phi, Y, lams, order, P, Lambda, sigma_e, refine):
     from scipy.optimize import minimize_scalar
 
     lams = np.asarray(lams if lams is not None else np.logspace(-2, 4, 25), dtype=float)
-    if np.any(lams <= 0):
-        raise DataError("candidate lambdas must be > 0")
+    if lams.ndim != 1 or len(lams) == 0 or not np.all(np.isfinite(lams)) or np.any(lams <= 0):
+        raise DataError("lams: candidate lambdas must be a non-empty 1-D array of finite numbers > 0")
 
     def ll(lam):
         return _tv_smooth(Phi, Y, lam, order, P, Lambda, None, None, sigma_e, "banded", False, None,
                           want_cov=False).loglik
 
     check_identifiable(Phi, _poly(order, P))
-    lls = np.array([ll(l) for l in lams])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lls = np.array([ll(l) for l in lams])
+    if not np.all(np.isfinite(lls)):
+        raise IdentifiabilityError(
+            f"the log-likelihood of lambda is undefined for these data ({len(Y)} samples, "
+            f"{int(np.sum(~np.isfinite(lls)))} of {len(lls)} candidates not finite): too few samples for the "
+            "number of parameters; give more data or choose lambda yourself")
     i = int(np.argmax(lls))
     best = float(lams[i])
     if refine and 0 < i < len(lams) - 1:
