@@ -247,6 +247,36 @@ class DiagnosisResult:
     unexplained: list = field(default_factory=list)
 
 
+def torque_step(y) -> float:
+    """The quantization step of a torque signal (0 when it is not on a grid): the smallest gap between
+    distinct values, when at least 99 % of the values sit on that grid."""
+    u = np.unique(np.asarray(y, float))
+    if u.size < 3 or u.size > 0.5 * y.size:
+        return 0.0
+    d = np.diff(u)
+    step = float(np.min(d[d > 1e-12 * max(np.ptp(u), 1e-300)])) if np.any(d > 0) else 0.0
+    if step <= 0:
+        return 0.0
+    k = (u - u[0]) / step
+    return step if np.mean(np.abs(k - np.round(k)) < 0.05) > 0.99 else 0.0
+
+
+def _above_quantization(prep, fit0, fit1, ext) -> bool:
+    """A quantized torque (a coarse ADC with little noise) makes a deterministic error of up to half a step
+    that follows the torque level (e.g. one error per speed level): an extension whose held-out change of the
+    prediction is not larger than the quantization step is not evidence of a physical effect."""
+    for j in ext.cols:
+        jd = prep.joints[j]
+        step = prep.meta.setdefault("tau_step", {}).get(j)
+        if step is None:
+            step = prep.meta["tau_step"][j] = torque_step(jd.tau)
+        if step > 0:
+            dpred = (fit1.pred[j] - fit0.pred[j])[jd.val]
+            if float(np.sqrt(np.mean(dpred ** 2))) < step:
+                return False
+    return True
+
+
 def _competition(ext, tst, results) -> dict:
     """The runner-up among the competing explanations of the same residual (other effects on the same
     joint(s), judged on the same held-out data), the margin of the winner's score over it, and whether the
@@ -283,6 +313,9 @@ def _search(prep, max_findings, alpha, min_gain):
             tst = _test(prep, fit, f1, ext)
             tst["significant"] = bool(tst["p_value"] < alpha and tst["rmse_reduction"] >= min_gain
                                       and tst["score"] > 0)
+            if tst["significant"] and not _above_quantization(prep, fit, f1, ext):
+                tst["significant"] = False
+                tst["below_quantization_step"] = True
             results.append((ext, tst, f1, m1))
         sig = [r for r in results if r[1]["significant"]]
         if not sig:

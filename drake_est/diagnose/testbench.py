@@ -41,6 +41,9 @@ def _velocity_profile(rng, t, levels, q_lo, q_hi, ramp):
     v = np.zeros(N)
     for i in range(1, N):
         v[i] = v[i - 1] + np.clip(target[i] - v[i - 1], -acc * h, acc * h)
+    # jerk-limited: a moving average over 0.25 s (smooth corners, as a real trajectory generator gives)
+    m = max(1, int(round(0.25 / h)))
+    v = np.convolve(np.concatenate([np.zeros(m), v, np.full(m, v[-1])]), np.ones(m) / m, "same")[m:-m]
     q = q_lo + 0.05 * (q_hi - q_lo) + np.cumsum(v) * h
     return q, v
 

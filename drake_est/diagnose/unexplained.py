@@ -91,7 +91,14 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
         if r is not None:
             tests.append((j, "time_correlation", r))
     n_tests = max(len(tests), 1)
+    from drake_est.diagnose.core import torque_step
+    steps = {j: prep.meta.get("tau_step", {}).get(j, None) for j in prep.joints}
+    steps = {j: (torque_step(prep.joints[j].tau) if s is None else s) for j, s in steps.items()}
+    var = {j: float(np.var((jd.y - fit.pred[j])[jd.val])) for j, jd in prep.joints.items()}
     for j, name, (p, share, where) in tests:
+        # a quantized torque leaves a deterministic error below one step that follows the torque level
+        if steps[j] > 0 and np.sqrt(share * var[j]) < steps[j]:
+            continue
         if p < alpha / n_tests and share >= min_share:
             d = {"joint": int(j), "variable": name, "p_value": p, "share_of_residual_variance": float(share),
                  "test": "autocorrelation F-test" if name == "time_correlation" else "ANOVA over 20 quantile bins"}
