@@ -370,3 +370,47 @@ def test_vectorised_exp_matches_numpy():
     assert out[-2] == 0.0 and out[-3] == 1.0
     vexp(a[:10] + 5.0, 5.0, out[:10], kb[:10])
     np.testing.assert_allclose(out[:10], ref[:10], rtol=1e-14)
+
+
+def _nan_f(x, u, t):
+    xn = 0.9 * x
+    return np.where((t == 3) & (x > 0.5), np.nan, xn)
+
+
+def _nan_f_point(x, u, t, out):
+    out[0] = 0.9 * x[0]
+    if t == 3 and x[0] > 0.5:
+        out[0] = np.nan
+
+
+def _id_h(x, u, t):
+    return x
+
+
+def _id_h_point(x, u, t, out):
+    out[0] = x[0]
+
+
+def test_nonfinite_transition_replaced_same_in_every_path():
+    """Particles that the transition sends to NaN are dropped and replaced by resampling, identically in the
+    fused, generic-compiled and numpy paths."""
+    y = np.random.default_rng(5).standard_normal((12, 1))
+    kw = dict(n_particles=200, seed=3)
+    fused = ParticleFilter.gaussian(_nan_f, _id_h, [[0.1]], [[0.5]], [0.0], [[1.0]], f_point=_nan_f_point,
+                                    h_point=_id_h_point, **kw).forward_trajectory(None, y)
+    gen = ParticleFilter.gaussian(_nan_f, _id_h, [[0.1]], [[0.5]], [0.0], [[1.0]], **kw)
+    g = gen.forward_trajectory(None, y)
+    os.environ["DRAKE_EST_NO_NUMBA"] = "1"
+    try:
+        ref = gen.forward_trajectory(None, y)
+    finally:
+        del os.environ["DRAKE_EST_NO_NUMBA"]
+    assert np.all(np.isfinite(ref.x_filt)) and np.all(np.isfinite(ref.x_pred)) and np.isfinite(ref.loglik)
+    for r in (fused, g):
+        np.testing.assert_allclose(r.x_filt, ref.x_filt, atol=1e-10, rtol=0)
+        np.testing.assert_allclose(r.x_pred, ref.x_pred, atol=1e-10, rtol=0)
+        np.testing.assert_allclose(r.P_pred, ref.P_pred, atol=1e-10, rtol=0)
+        assert abs(r.loglik - ref.loglik) < 1e-10 * max(1.0, abs(ref.loglik))
+    # without the NaNs the predicted mean after step 3 differs: the replacement really happened
+    clean = ParticleFilter.gaussian(lambda x, u, t: 0.9 * x, _id_h, [[0.1]], [[0.5]], [0.0], [[1.0]], **kw)
+    assert abs(clean.forward_trajectory(None, y).x_pred[4, 0] - ref.x_pred[4, 0]) > 1e-3
