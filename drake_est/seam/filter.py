@@ -39,6 +39,11 @@ except ImportError:   # pragma: no cover
     numba = None
 
 
+from pydrake.multibody.tree import JacobianWrtVariable as _JWV  # noqa: E402
+
+_KV = _JWV.kV
+
+
 def use_numba() -> bool:
     return numba is not None and not os.environ.get("DRAKE_EST_NO_NUMBA")
 
@@ -47,6 +52,11 @@ def use_numba() -> bool:
 def so3_exp(w):
     """Rotation matrices Exp(w) (Rodrigues) for rotation vectors w (..., 3)."""
     w = np.asarray(w, float)
+    if w.shape == (3,):
+        th = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        a, b = (1.0 - th * th / 6, 0.5 - th * th / 24) if th < 1e-8 else (math.sin(th) / th, (1 - math.cos(th)) / th ** 2)
+        K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+        return np.eye(3) + a * K + b * (K @ K)
     th = np.linalg.norm(w, axis=-1)[..., None, None]
     K = np.zeros(w.shape[:-1] + (3, 3))
     K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
@@ -438,10 +448,9 @@ class SeamTrackingModel:
 
     def joint_torque(self, q, f) -> np.ndarray:
         """tau = J_v(q)^T f of a force f [N] at the TCP."""
-        from pydrake.multibody.tree import JacobianWrtVariable
         r = self.robot
         r.plant.SetPositions(r.context, np.asarray(q, float))
-        Jv = r.plant.CalcJacobianTranslationalVelocity(r.context, JacobianWrtVariable.kV, r.flange, self.X_FT[:3, 3],
+        Jv = r.plant.CalcJacobianTranslationalVelocity(r.context, _KV, r.flange, self.X_FT[:3, 3],
                                                        r.plant.world_frame(), r.plant.world_frame())
         return Jv.T @ np.asarray(f, float)
 
