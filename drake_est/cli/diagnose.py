@@ -1,4 +1,4 @@
-"""``drake-est diagnose LOG [--robot irb140|generic|PATH.urdf] [--joints 1,2] [--out DIR] [--seed N]``
+"""``drake-est diagnose LOG [LOG2 ...] [--robot irb140|generic|PATH.urdf] [--joints 1,2] [--out DIR] [--seed N]``
 
 Model-discrepancy diagnosis of a measured log: the nominal model's held-out residual, the
 effects found (each with its statistical evidence and held-out gain), the extended model, and
@@ -13,7 +13,8 @@ from drake_est.errors import DataError
 def register(sub):
     p = sub.add_parser("diagnose", help="find what the nominal model gets wrong in a log, name the cause, "
                                         "extend the model and measure the held-out gain")
-    p.add_argument("log", help="log file (.csv or .npz, drake_est format: t, q<j>, tau<j>)")
+    p.add_argument("log", nargs="+", help="log file(s) (.csv or .npz, drake_est format: t, q<j>, tau<j>); several "
+                                          "logs of one machine are diagnosed together, whole logs held out")
     p.add_argument("--robot", default="generic",
                    help="irb140, generic (default: each joint an independent axis) or a URDF path")
     p.add_argument("--joints", default=None, help="comma-separated 1-based joints to diagnose (default: all)")
@@ -59,9 +60,15 @@ def run(args) -> int:
         from drake_est.robots import irb140_metadata
 
         limits = irb140_metadata().limits_dict()
-    log = load_log(args.log, limits=limits, nan_policy="drop" if args.drop_invalid else "raise")
+    paths = args.log if isinstance(args.log, list) else [args.log]
+    logs = [load_log(p, limits=limits, nan_policy="drop" if args.drop_invalid else "raise") for p in paths]
+    if len(logs) == 1:
+        log = logs[0]
+    else:
+        from drake_est.diagnose import concatenate_logs
+        log = concatenate_logs(logs)
     rep = diagnose(log, robot=args.robot, joints=joints, seed=args.seed, simulate=not args.no_simulation,
-                   source=str(args.log))
+                   source=" + ".join(str(p) for p in paths))
     rep.write(out)
     print(rep.summary())
     print(f"report: {out / 'report.md'} (numbers in {out / 'report.json'})")

@@ -20,11 +20,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from drake_est.diagnose.core import ALPHA, MIN_GAIN, run_diagnosis
 from drake_est.diagnose.detectors import VOCABULARY
 from drake_est.diagnose.report import DiagnosisReport
 
-__all__ = ["diagnose", "DiagnosisReport", "VOCABULARY", "run_demo", "friction_system", "friction_params"]
+__all__ = ["diagnose", "diagnose_logs", "concatenate_logs", "DiagnosisReport", "VOCABULARY", "run_demo", "friction_system", "friction_params"]
 
 
 def diagnose(log, robot: str | None = "generic", joints=None, seed: int = 0, simulate: bool = True,
@@ -54,6 +56,45 @@ def diagnose(log, robot: str | None = "generic", joints=None, seed: int = 0, sim
         rep.simulation = simulation_error(res)
         res.timing["simulation_s"] = time.perf_counter() - t0
     return rep
+
+
+def concatenate_logs(logs, gap_s: float = 1.0):
+    """One :class:`~drake_est.data.Log` of several logs of one machine, one after the other in time (a gap of
+    ``gap_s`` between them), derivatives computed per log (:data:`~drake_est.diagnose.nominal.DERIV_WINDOW_S`)
+    and a channel ``log_index`` (0, 1, ...).  :func:`diagnose` on it fits one model across the logs and holds
+    out whole logs (odd-numbered logs validate)."""
+    from drake_est.data import Log
+    from drake_est.diagnose.nominal import DERIV_WINDOW_S
+    from drake_est.errors import DataError
+    if len(logs) < 2:
+        raise DataError("concatenate_logs needs at least two logs")
+    joints = list(logs[0].joints)
+    parts = []
+    t_end = None
+    for k, lg in enumerate(logs):
+        if list(lg.joints) != joints:
+            raise DataError(f"log {k + 1} has joints {list(lg.joints)}, the first log {joints}")
+        if lg.tau is None:
+            raise DataError(f"log {k + 1} has no torque columns")
+        if lg.dq is None or lg.ddq is None or "derivatives" in lg.meta:
+            lg = Log(t=lg.t, q=lg.q, tau=lg.tau, joints=joints, meta={}).with_derivatives(window_s=DERIV_WINDOW_S)
+        t = lg.t - lg.t[0] + (0.0 if t_end is None else t_end + gap_s)
+        t_end = float(t[-1])
+        parts.append((t, lg, np.full(t.size, float(k))))
+    cat = lambda f: np.concatenate([f(p) for p in parts])  # noqa: E731
+    return Log(t=cat(lambda p: p[0]), q=np.vstack([p[1].q for p in parts]), dq=np.vstack([p[1].dq for p in parts]),
+               ddq=np.vstack([p[1].ddq for p in parts]), tau=np.vstack([p[1].tau for p in parts]), joints=joints,
+               channels={"log_index": cat(lambda p: p[2])},
+               meta={"file": " + ".join(str(p[1].meta.get("file", f"log{k + 1}")) for k, p in enumerate(parts)),
+                     "n_logs": len(parts), "tau_unit": logs[0].meta.get("tau_unit")})
+
+
+def diagnose_logs(logs, robot: str | None = "generic", **kw) -> DiagnosisReport:
+    """Diagnose several logs of one machine at once (:func:`concatenate_logs`): one model (common friction
+    and effects) fitted on the even-numbered logs, judged on the odd-numbered ones (whole logs held out)."""
+    from drake_est.data import Log, load_log
+    logs = [lg if isinstance(lg, Log) else load_log(lg) for lg in logs]
+    return diagnose(concatenate_logs(logs), robot=robot, **kw)
 
 
 def friction_system(report: DiagnosisReport, sign_eps: float = 0.0):

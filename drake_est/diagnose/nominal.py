@@ -249,6 +249,10 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
         jd.counts["outliers"] = int(bad.sum())
         jd.rows = rows[~bad]
         jd.train, jd.val = block_split(t, jd.rows)
+        if "log_index" in log.channels:
+            # several logs: whole logs are held out (odd-numbered logs validate, even-numbered train)
+            li = np.asarray(log.channels["log_index"]).astype(int)[jd.rows]
+            jd.train, jd.val = (li % 2) == 0, (li % 2) == 1
         if jd.train.sum() < 100 or jd.val.sum() < 100:
             prep.skipped[j] = "too few samples in the training or validation half"
             continue
