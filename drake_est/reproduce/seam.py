@@ -41,7 +41,8 @@ def seam_sensors(out_dir, quick: bool = False, seed: int = 0, n_seeds: int | Non
                 summary.setdefault(f"{kind}_{s}_sensors", {})[lab] = {
                     "median": float(np.median(v)), "q10": float(np.percentile(v, 10)),
                     "q90": float(np.percentile(v, 90))}
-            axes[r, j].boxplot(data, labels=["0", "1", "2"])
+            axes[r, j].boxplot(data)
+            axes[r, j].set_xticks([1, 2, 3], ["0", "1", "2"])
             axes[r, j].set_title(f"{kind}: {lab}", fontsize=9)
             axes[r, j].set_xlabel("laser stripes")
     fig.suptitle("RMS estimation error over %d seeds (cf. thesis Fig. 14.8)" % n)
