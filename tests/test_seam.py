@@ -208,3 +208,13 @@ def test_cli_bad_seam_exits_2(tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1
     with pytest.raises(DataError, match="does not exist"):
         load_seam_csv(tmp_path / "none.csv")
+
+
+@pytest.mark.slow
+def test_reproduce_seam_sensors_quick(tmp_path):
+    from drake_est.reproduce.seam import seam_sensors
+    r = seam_sensors(tmp_path, quick=True, n_seeds=2, workers=1)
+    e = r["errors"]
+    # laser stripes make the cross-seam direction (x on the xy seam) measurable
+    assert e["xy_2_sensors"]["x [mm]"]["median"] < e["xy_0_sensors"]["x [mm]"]["median"]
+    assert (tmp_path / "seam_sensors.png").stat().st_size > 5000
