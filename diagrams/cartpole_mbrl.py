@@ -2,7 +2,7 @@
 
 Learns a controller for the pendulum-on-a-cart task of thesis Sec. 11.2 (dampen the pendulum released near
 upright, |u| <= 10 m/s^2) with :func:`drake_est.control.mbrl.mbrl` (LTV model by (7.5), KL-constrained iLQR) on
-:class:`drake_est.control.cartpole_drake.CartPoleTrueSystem`, then runs the learned time-varying feedback
+:class:`drake_est.systems.cartpole_plant.CartPoleTrueSystem`, then runs the learned time-varying feedback
 controller (mean action, as an ``IlqrController.from_plan``) in a Diagram with the continuous cart-pole
 ``MultibodyPlant`` (``models/cartpole.urdf``) through a 0.01 s zero-order hold.
 
@@ -24,7 +24,7 @@ from pydrake.systems.framework import DiagramBuilder  # noqa: E402
 from pydrake.systems.primitives import MatrixGain, VectorLogSink, ZeroOrderHold  # noqa: E402
 
 from drake_est.control.cartpole import benchmark_problem  # noqa: E402
-from drake_est.control.cartpole_drake import (PLANT_FROM_THESIS, THESIS_FROM_PLANT,  # noqa: E402
+from drake_est.systems.cartpole_plant import (PLANT_FROM_THESIS, THESIS_FROM_PLANT,  # noqa: E402
                                               CartPoleTrueSystem, add_cartpole)
 from drake_est.control.ilqr import ilqr  # noqa: E402
 from drake_est.control.mbrl import mbrl  # noqa: E402

@@ -139,7 +139,7 @@ def test_drake_autodiff_jacobians_match_finite_differences():
 
 
 def test_drake_cartpole_equals_equations_8_11_8_12():
-    from drake_est.control.cartpole_drake import CartPoleTrueSystem
+    from drake_est.systems.cartpole_plant import CartPoleTrueSystem
     s = CartPoleTrueSystem()
     rng = np.random.default_rng(2)
     for _ in range(20):
@@ -227,12 +227,12 @@ def test_ilqr_controller_in_a_diagram_with_the_drake_cartpole():
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import ZeroOrderHold
 
-    from drake_est.control.cartpole_drake import add_cartpole
+    from drake_est.systems.cartpole_plant import add_cartpole
     from drake_est.systems.controllers import IlqrController
     model, cost, x0, _, lo, hi = benchmark_problem()
     builder = DiagramBuilder()
     plant, act = add_cartpole(builder)
-    from drake_est.control.cartpole_drake import PLANT_FROM_THESIS, THESIS_FROM_PLANT
+    from drake_est.systems.cartpole_plant import PLANT_FROM_THESIS, THESIS_FROM_PLANT
     from pydrake.systems.primitives import MatrixGain
     P = np.eye(4)[THESIS_FROM_PLANT]            # thesis-order state = P @ plant state
     to_thesis = builder.AddSystem(MatrixGain(P))

@@ -42,7 +42,7 @@ def test_fit_ltv_predicts_the_cartpole_along_the_trajectory():
 
 
 def test_mbrl_ltv_improves_on_the_drake_cartpole():
-    from drake_est.control.cartpole_drake import CartPoleTrueSystem
+    from drake_est.systems.cartpole_plant import CartPoleTrueSystem
     model, cost, x0, _, lo, hi = benchmark_problem()
     true = CartPoleTrueSystem()
     r = mbrl(true, model, cost, x0, 400, model="ltv", iterations=4, seed=0, lower=lo, upper=hi)
@@ -62,7 +62,7 @@ def test_mbrl_bad_input():
 
 @pytest.mark.slow
 def test_mbrl_ltv_with_nn_prior_runs_and_keeps_the_kl_bound():
-    from drake_est.control.cartpole_drake import CartPoleTrueSystem
+    from drake_est.systems.cartpole_plant import CartPoleTrueSystem
     model, cost, x0, _, lo, hi = benchmark_problem()
     r = mbrl(CartPoleTrueSystem(), model, cost, x0, 400, model="ltv-nn", iterations=2, seed=0, lower=lo, upper=hi)
     assert len(r.costs) == 2 and all(np.isfinite(r.costs))

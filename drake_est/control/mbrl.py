@@ -3,7 +3,7 @@
     repeat: perform rollout -> fit dynamics model -> optimize trajectory and controller -> until convergence
 
 * rollout: the Gaussian controller p(u|x) = N(u_hat + K (x - x_hat), Sigma) (11.11) on the true system (a Drake
-  system, e.g. :class:`drake_est.control.cartpole_drake.CartPoleTrueSystem`); the exploration noise has the
+  system, e.g. :class:`drake_est.systems.cartpole_plant.CartPoleTrueSystem`); the exploration noise has the
   controller's covariance Sigma = Q_uu^{-1} of the last optimization (the first rollout uses ``sigma0``^2);
 * fit: ``"ltv"`` — x_{t+1} = A_t x_t + B_t u_t + c_t by the Kalman smoother (7.5) (second-order random walk of
   the parameters, :func:`drake_est.identification.ltv.ltv_smoother` with ``order=2``; the affine term enters as a

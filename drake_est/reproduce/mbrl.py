@@ -29,7 +29,7 @@ def _plt():
 def _one(args):
     kind, seed, iterations, kl_step = args
     from drake_est.control.cartpole import benchmark_problem
-    from drake_est.control.cartpole_drake import CartPoleTrueSystem
+    from drake_est.systems.cartpole_plant import CartPoleTrueSystem
     from drake_est.control.mbrl import mbrl
     model, cost, x0, _, lo, hi = benchmark_problem()
     true = CartPoleTrueSystem()

@@ -222,10 +222,13 @@ def contract_cases():
                 "nominal_state": res.X[5]}
 
     def make_act():
-        from pydrake.systems.framework import DiagramBuilder
+        from pydrake.multibody.parsing import Parser
+        from pydrake.multibody.plant import MultibodyPlant
 
-        from drake_est.control.cartpole_drake import add_cartpole
-        plant, _ = add_cartpole(DiagramBuilder())
+        from drake_est.robots import models_dir
+        plant = MultibodyPlant(0.0)
+        Parser(plant).AddModels(str(models_dir() / "cartpole.urdf"))
+        plant.Finalize()
         return CartAccelerationActuator(plant)
 
     xs = np.array([0.2, 0.7, -0.3, 1.1])
