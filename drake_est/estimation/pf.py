@@ -186,7 +186,8 @@ class ParticleFilter(Filter):
         return int(max(1, min(256, _CHUNK_BYTES // (8 * self.N * max(1, self.nx)))))
 
     def _draws(self, c: int):
-        """Chunk c of pre-drawn numbers: standard normals (K, N, nx) and resampling uniforms (K,)."""
+        """Chunk c of pre-drawn numbers: standard normals (K, N, nx) (float32, :func:`box_muller_f32`, in a
+        buffer reused by the next chunk) and resampling uniforms (K,); a pure function of (seed, c)."""
         hit = self._chunk_cache.get("c")
         if hit is not None and hit[0] == c:
             return hit[1], hit[2]
