@@ -125,7 +125,7 @@ def test_numba_kernel_equals_numpy_path():
     assert abs(fused.loglik - plain.loglik) < 1e-10 * max(1.0, abs(plain.loglik))
     assert fused.extras["n_resampled"] == plain.extras["n_resampled"] > 0
     # the generic path (numpy f, h; compiled weighting/resampling/propagation) gives the same numbers too,
-    # with and without covariances, and with a full (non-diagonal) process noise covariance
+    # with and without covariances, and with full (non-diagonal) noise covariances
     gen = ParticleFilter.gaussian(f, hm, 1e-4 * np.eye(4), 0.0025 * np.eye(2), np.zeros(4), 0.1 * np.eye(4), **kw)
     for cov in (True, False):
         g = gen.forward_trajectory(u, y, covariances=cov)
@@ -133,7 +133,8 @@ def test_numba_kernel_equals_numpy_path():
             np.testing.assert_allclose(getattr(g, k), getattr(plain, k), atol=1e-10, rtol=0)
         assert abs(g.loglik - plain.loglik) < 1e-10 * max(1.0, abs(plain.loglik))
     Rf = 1e-4 * (np.eye(4) + 0.5 * np.ones((4, 4)))
-    fulls = [ParticleFilter.gaussian(f, hm, Rf, 0.0025 * np.eye(2), np.zeros(4), 0.1 * np.eye(4),
+    R2f = 0.0025 * np.array([[1.0, 0.4], [0.4, 1.0]])          # full R1 and R2: the triangular-solve paths
+    fulls = [ParticleFilter.gaussian(f, hm, Rf, R2f, np.zeros(4), 0.1 * np.eye(4),
                                      f_point=fp, h_point=hp, **kw) for fp, hp in ((f1, h1), (None, None))]
     runs = [p_.forward_trajectory(u, y) for p_ in fulls]
     os.environ["DRAKE_EST_NO_NUMBA"] = "1"
