@@ -77,6 +77,15 @@ class SeamSensors(LeafSystem):
         self._pose = self.DeclareVectorInputPort("tool_pose", 16)
         self._y = self.DeclareVectorOutputPort("measurement", model.ny, self._calc)
 
+    def get_commanded_joints_input_port(self):
+        return self._q
+
+    def get_process_force_input_port(self):
+        return self._f
+
+    def get_tool_pose_input_port(self):
+        return self._pose
+
     def get_measurement_output_port(self):
         return self._y
 
@@ -220,9 +229,9 @@ def MakeSeamTrackingDiagram(scenario, filter_config=None, closed_loop: bool = Tr
     b.Connect(est.get_estimate_output_port(), ctrl.get_estimate_input_port())
     b.Connect(ctrl.get_commanded_joints_output_port(), arm.get_commanded_joints_input_port())
     b.Connect(fsrc.get_output_port(), arm.get_process_force_input_port())
-    b.Connect(ctrl.get_commanded_joints_output_port(), sens._q)
-    b.Connect(fsrc.get_output_port(), sens._f)
-    b.Connect(arm.get_tool_pose_output_port(), sens._pose)
+    b.Connect(ctrl.get_commanded_joints_output_port(), sens.get_commanded_joints_input_port())
+    b.Connect(fsrc.get_output_port(), sens.get_process_force_input_port())
+    b.Connect(arm.get_tool_pose_output_port(), sens.get_tool_pose_input_port())
     b.Connect(sens.get_measurement_output_port(), est.get_measurement_input_port())
     b.Connect(ctrl.get_commanded_joints_output_port(), umux.get_input_port(0))
     b.Connect(sens.get_measurement_output_port(), fsel.get_input_port())
@@ -258,8 +267,6 @@ class _Slice(LeafSystem):
 
 def contract_cases():
     from drake_est.seam.filter import SeamFilterConfig
-    from drake_est.seam.seam import thesis_seam
-    from drake_est.seam.simulate import ScenarioConfig, make_scenario
     from drake_est.systems.contract import ContractCase
 
     scn = _contract_scenario()
