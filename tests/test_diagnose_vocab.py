@@ -63,3 +63,27 @@ def test_null_log_nothing_named_nothing_unexplained():
         log, _ = generate({}, seed=7, duration=90, sample_rate=100, noise=noise)
         d = diagnose(log, robot="generic", simulate=False).to_dict()
         assert d["findings"] == [] and d["unexplained"] == [], noise
+
+
+def test_out_of_vocabulary_delay_is_unexplained_not_named():
+    from drake_est.diagnose import diagnose
+    log, _ = generate({"delay": 1.0}, seed=11, duration=120, sample_rate=100)
+    d = diagnose(log, robot="generic", simulate=False).to_dict()
+    assert d["findings"] == []
+    assert d["unexplained"] and d["unexplained"][0]["share_of_residual_variance"] > 0.08
+
+
+def test_concatenate_logs_holds_out_whole_logs():
+    from drake_est.diagnose import concatenate_logs
+    from drake_est.diagnose.nominal import prepare
+    from drake_est.errors import DataError
+    logs = [generate({}, seed=s, duration=30, sample_rate=50)[0] for s in (1, 2, 3)]
+    cat = concatenate_logs(logs)
+    assert cat.n_samples == sum(lg.n_samples for lg in logs)
+    assert np.all(np.diff(cat.t) > 0)
+    prep = prepare(cat, robot="generic")
+    jd = prep.joints[1]
+    li = cat.channels["log_index"][jd.rows].astype(int)
+    assert set(li[jd.train]) == {0, 2} and set(li[jd.val]) == {1}
+    with pytest.raises(DataError):
+        concatenate_logs(logs[:1])

@@ -363,6 +363,7 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         prep.meta.pop("payload_ext", None)
     fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma = out
     from drake_est.diagnose.unexplained import residual_structure
+    fit._model = model
     unexplained = residual_structure(prep, fit)
     timing = {"prepare_s": t_prep, "total_s": time.perf_counter() - t0, "alpha": alpha, "min_gain": min_gain}
     return DiagnosisResult(prep, fit0, nominal_val, nominal_joint, steps, fit, model, rejected, timing, sigma,

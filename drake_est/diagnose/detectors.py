@@ -31,6 +31,9 @@ from drake_est.effects import EFFECTS, EXTRA_EFFECTS  # noqa: F401
 from drake_est.identification.friction.extensions import columns_at, gaussian_features, unit_energy  # noqa: F401
 
 RIPPLE_BASIS = 8
+#: the ripple scan starts at this many cycles over the position span (slower variation is position-dependent
+#: friction's); 5 lets a 7-per-revolution cogging over one revolution be seen
+RIPPLE_MIN_CYCLES = 5.0
 BFE_SIZES = (8, 16, 32, 64)
 #: FFT bins of the frequency scan: the highest frequency scanned is about
 #: RIPPLE_MAX_FFT / (64 span) cycles per rad (e.g. 680 cycles/rad over a 3 rad sweep), or the
@@ -136,7 +139,7 @@ def ripple(jd, r, n_components=2, n_basis=None):
         return None
     try:
         pc = find_periodic_components(qt, rt, schedule=vt, n_components=n_components, n_basis=n_basis or RIPPLE_BASIS,
-                                      f_min=8.0 / span, base=np.column_stack([_sgn(vt), vt]),
+                                      f_min=RIPPLE_MIN_CYCLES / span, base=np.column_stack([_sgn(vt), vt]),
                                       max_fft=RIPPLE_MAX_FFT)
     except DrakeEstError:
         return None

@@ -22,6 +22,9 @@ import scipy.stats
 
 ALPHA_UNEXPLAINED = 1e-3
 MIN_SHARE = 0.03
+#: on the accelerating samples left out by (9.9) the accelerations themselves are less accurate (derivative
+#: filter lag at jerks): a structure there must hold this much of the residual variance
+MIN_SHARE_EXCLUDED = 0.08
 N_BINS = 20
 N_LAGS = 5
 #: a thermal (energy) drift with a time constant of about an hour needs a log this long [s] to be testable
@@ -71,6 +74,37 @@ def _whiteness(e, block, n_lags=N_LAGS):
     return p, 1.0 - rss1 / max(rss0, 1e-300), float(c[0])
 
 
+def _excluded_moving(prep, fit, j, n_max=20000):
+    """ANOVA over acceleration of the final model's residual on the *moving but accelerating* samples that
+    the data selection (9.9) left out (a delay between torque and position, backlash or an inertia error
+    shows there first).  The final model is evaluated at those samples through the same columns
+    (:func:`~drake_est.identification.friction.extensions.columns_at`); None when an extension cannot be
+    evaluated there (gear coupling, payload) or too few such samples exist."""
+    from drake_est.diagnose.core import Model
+    from drake_est.identification.friction.extensions import columns_at
+    jd = prep.joints[j]
+    model = getattr(fit, "_model", None)
+    if model is None or model.shared_exts():
+        return None
+    thr = jd.counts["thresholds"]
+    idx = np.flatnonzero((np.abs(jd.v) > thr["v_min"]) & (np.abs(jd.a) > thr["a_max"]))
+    if idx.size < 500:
+        return None
+    idx = idx[:: max(1, idx.size // n_max)]
+    q, v, t = jd.q[idx], jd.v[idx], jd.t[idx]
+    blocks = [np.column_stack([v, np.sign(v)])]
+    for e in model.own(j):
+        if e.effect in ("gear_coupling", "payload"):
+            return None
+        E = None if e.obj is None or e.effect != "energy_dependent_friction" else np.asarray(e.obj)[idx]
+        blocks.append(columns_at(e.spec, q, v, t, E_unit=E))
+    pred = np.hstack(blocks) @ fit.coef[j]
+    e = (jd.tau - jd.rb)[idx] - pred
+    e = e - e.mean()
+    _ = Model
+    return _anova(jd.a[idx], e)
+
+
 def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) -> list:
     """Remaining structure of the final held-out residual (list of dicts; empty when none)."""
     from drake_est.diagnose.nominal import block_index
@@ -90,6 +124,9 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
         r = _whiteness(e, block_index(jd.t, rows))
         if r is not None:
             tests.append((j, "time_correlation", r))
+        r = _excluded_moving(prep, fit, j)
+        if r is not None:
+            tests.append((j, "acceleration_excluded_samples", r))
     n_tests = max(len(tests), 1)
     from drake_est.diagnose.core import torque_step
     steps = {j: prep.meta.get("tau_step", {}).get(j, None) for j in prep.joints}
@@ -99,8 +136,11 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
         # a quantized torque leaves a deterministic error below one step that follows the torque level
         if steps[j] > 0 and np.sqrt(share * var[j]) < steps[j]:
             continue
-        if p < alpha / n_tests and share >= min_share:
+        need = max(min_share, MIN_SHARE_EXCLUDED) if name.endswith("_excluded_samples") else min_share
+        if p < alpha / n_tests and share >= need:
             d = {"joint": int(j), "variable": name, "p_value": p, "share_of_residual_variance": float(share),
+                 "samples": "accelerating samples left out by (9.9)" if name.endswith("_excluded_samples")
+                 else "held-out samples",
                  "test": "autocorrelation F-test" if name == "time_correlation" else "ANOVA over 20 quantile bins"}
             if name == "time_correlation":
                 d["lag1_coefficient"] = where
