@@ -32,6 +32,10 @@ def run(args) -> int:
         if log.tau is not None:
             line += f", tau in [{log.tau[:, i].min():.3f}, {log.tau[:, i].max():.3f}]"
         print(line)
+        if args.robot is None and log.meta.get("axis_type") != "prismatic" and 2 * np.pi < np.abs(q).max() <= 400 \
+                and np.ptp(q) > 2 * np.pi:
+            print(f"  note: joint {j} spans {np.ptp(q):.1f} over more than one revolution in rad; if its positions "
+                  f"are in degrees, convert them to radians (the format wants rad)")
     dt = float(np.median(np.diff(log.t)))
     if dt >= 0.5:
         print(f"  note: the median sample interval is {dt:.3g} s; if the time column is in milliseconds, "

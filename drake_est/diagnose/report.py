@@ -30,6 +30,14 @@ EFFECT_TEXT = {
 }
 
 
+def torque_unit(log) -> str:
+    """The unit of the logged torque column: N for linear (prismatic) axes, the log's own (e.g. A for a motor
+    current) when it says so, else N m."""
+    if log.meta.get("tau_unit"):
+        return str(log.meta["tau_unit"])
+    return "N" if str(log.meta.get("axis_type", "")).lower() in ("prismatic", "linear") else "N m"
+
+
 def _r(x, nd=6):
     if isinstance(x, dict):
         return {str(k): _r(v, nd) for k, v in x.items() if not str(k).startswith("_")}
@@ -149,7 +157,8 @@ class DiagnosisReport:
                              for j, jd in prep.joints.items()},
                 "selection": {str(j): jd.counts["thresholds"] for j, jd in prep.joints.items()},
                 "split": f"alternating time blocks ({n_blocks_for(log.duration)}): even blocks train, odd blocks validate",
-                "validation_samples": {str(j): int(jd.val.sum()) for j, jd in prep.joints.items()}}
+                "validation_samples": {str(j): int(jd.val.sum()) for j, jd in prep.joints.items()},
+                "torque_unit": torque_unit(log)}
         if prep.meta.get("joints_held_at_zero"):
             data["robot_joints_not_in_log_held_at_zero"] = prep.meta["joints_held_at_zero"]
         from drake_est.diagnose.core import Model
@@ -221,12 +230,13 @@ class DiagnosisReport:
 
     def summary(self) -> str:
         d = self.to_dict()
+        u = d["data"].get("torque_unit", "N m")
         lines = [f"{d['data']['file']}: {d['data']['samples']} samples, {d['data']['duration_s']:.0f} s, "
                  f"joints {d['data']['joints']} ({d['data']['robot']})"]
         for j, r in d["data"]["skipped_joints"].items():
             lines.append(f"  joint {j} skipped: {r}")
         nv = d["nominal"]["validation"]
-        lines.append(f"nominal model: held-out RMSE {nv['rmse']:.4g} N m, Fit {nv['fit']:.1f} %")
+        lines.append(f"nominal model: held-out RMSE {nv['rmse']:.4g} {u}, Fit {nv['fit']:.1f} %")
         if not d["findings"]:
             lines.append("no finding: the nominal model explains the held-out data (no extension passed the test)")
         for f in d["findings"]:
@@ -245,10 +255,10 @@ class DiagnosisReport:
             if "time_constant_s" in ev:
                 extra = f", tau_e = {ev['time_constant_s']:.4g} s"
             lines.append(f"FOUND {f['effect']} (joint {f['joint']}{extra}): p = {ev['p_value']:.2g}, held-out RMSE "
-                         f"{f['validation']['rmse']:.4g} N m, gain x{f['gain']['rmse_ratio']:.3g}")
+                         f"{f['validation']['rmse']:.4g} {u}, gain x{f['gain']['rmse_ratio']:.3g}")
         fv = d["final"]["validation"]
         named = ", ".join(f"{f['effect']} (joint {f['joint']})" for f in d["findings"]) or "(nominal)"
-        lines.append(f"final model {named}: held-out RMSE {fv['rmse']:.4g} N m, "
+        lines.append(f"final model {named}: held-out RMSE {fv['rmse']:.4g} {u}, "
                      f"Fit {fv['fit']:.1f} %, gain x{d['final']['gain']['rmse_ratio']:.3g}")
         return "\n".join(lines)
 
@@ -273,6 +283,7 @@ def markdown(d: dict) -> str:
     """Human-readable account of a report dict."""
     L = ["# Model-discrepancy diagnosis", ""]
     da = d["data"]
+    u = da.get("torque_unit", "N m")
     L.append(f"Log `{da['file']}`: {da['samples']} samples, {da['duration_s']:.1f} s at {da['sample_rate_hz']:.4g} Hz; "
              f"diagnosed joints {da['joints']} with the `{da['robot']}` model.")
     for j, r in da["skipped_joints"].items():
@@ -283,7 +294,7 @@ def markdown(d: dict) -> str:
                  + (f", {c['thinned']} thinned" if c.get("thinned") else ""))
     L += ["", f"Validation: {da['split']}.", "", "## What the simulation gets wrong", ""]
     nv = d["nominal"]["validation"]
-    L.append(f"The nominal model ({d['nominal']['model']}) leaves a held-out RMSE of **{nv['rmse']:.4g} N m** "
+    L.append(f"The nominal model ({d['nominal']['model']}) leaves a held-out RMSE of **{nv['rmse']:.4g} {u}** "
              f"(MAE {nv['mae']:.4g}, Fit {nv['fit']:.1f} %, FPE {nv['fpe']:.4g}).")
     for j, p in d["nominal"]["parameters"].items():
         L.append(f"- joint {j}: " + ", ".join(f"{k} = {_fmt(v)}" for k, v in p.items()))
@@ -310,12 +321,12 @@ def markdown(d: dict) -> str:
         L.append("Parameters: " + ", ".join(f"{a} = {_fmt(b)}" for a, b in f["parameters"].items()
                                             if not isinstance(b, list) or len(b) <= 4))
         v = f["validation"]
-        L.append(f"Held-out after this step: RMSE {v['rmse']:.4g} N m, MAE {v['mae']:.4g}, Fit {v['fit']:.1f} %, "
+        L.append(f"Held-out after this step: RMSE {v['rmse']:.4g} {u}, MAE {v['mae']:.4g}, Fit {v['fit']:.1f} %, "
                  f"FPE {v['fpe']:.4g}; gain x{f['gain']['rmse_ratio']:.3g} over the nominal model.")
         L.append("")
     fv = d["final"]["validation"]
     L += ["## The extended model", "",
-          f"Effects: {', '.join(d['final']['effects']) or 'none (nominal)'}; held-out RMSE **{fv['rmse']:.4g} N m** "
+          f"Effects: {', '.join(d['final']['effects']) or 'none (nominal)'}; held-out RMSE **{fv['rmse']:.4g} {u}** "
           f"(nominal {nv['rmse']:.4g}), gain x{d['final']['gain']['rmse_ratio']:.3g}."]
     L += ["", "## Unexplained", ""]
     if not d.get("unexplained"):
