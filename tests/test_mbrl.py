@@ -67,3 +67,27 @@ def test_mbrl_ltv_with_nn_prior_runs_and_keeps_the_kl_bound():
     r = mbrl(CartPoleTrueSystem(), model, cost, x0, 400, model="ltv-nn", iterations=2, seed=0, lower=lo, upper=hi)
     assert len(r.costs) == 2 and all(np.isfinite(r.costs))
     assert all(k <= b * 1.1 + 1e-9 for k, b in zip(r.kl, r.kl_bounds))
+
+
+def test_fit_ltv_skips_singular_lambdas_and_raises_when_all_are():
+    from drake_est.errors import IdentifiabilityError
+    model = CartPoleModel()
+    T = 100
+    U = np.random.default_rng(0).normal(size=(T, 1))   # 4 equations per step for 6 parameters per row:
+    x0 = np.array([np.pi - 0.1, 0, 0, 0])
+    X, U, _ = model.forward(x0, np.zeros((T + 1, 4)), U, np.zeros((T, 1, 4)), np.zeros((T, 1)), 0.0,
+                            np.full((T, 1), -10.0), np.full((T, 1), 10.0))
+    with pytest.raises(IdentifiabilityError, match="lams"):
+        fit_ltv(X, U, lams=[0.0, 1e-8])                  # singular without enough random-walk prior
+    _, lam = fit_ltv(X, U, lams=[0.0, 1e-8, 10.0])
+    assert lam == 10.0
+
+
+def test_mbrl_noise_scale_is_validated_and_zero_noise_repeats_the_mean_rollout():
+    from drake_est.systems.cartpole_plant import CartPoleTrueSystem
+    model, cost, x0, _, lo, hi = benchmark_problem()
+    with pytest.raises(DataError, match="noise_scale"):
+        mbrl(None, model, cost, x0, 10, model="ltv", noise_scale=-1.0)
+    r = mbrl(CartPoleTrueSystem(), model, cost, x0, 50, model="lti", iterations=1, noise_scale=0.0,
+             lower=lo, upper=hi)
+    assert r.rollout_costs[0] == r.costs[0]

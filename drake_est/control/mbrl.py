@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_est.control.ilqr import LinearGaussianController, LtvModel, ilqr, ilqr_kl
-from drake_est.errors import DataError
+from drake_est.errors import DataError, IdentifiabilityError
 from drake_est.progress import progress
 
 MODELS = ("true", "ltv", "lti", "ltv-nn")
@@ -60,17 +60,23 @@ def fit_lti(Xs, Us):
 def fit_ltv(X, U, lams=None, prior=None, prior_cov=None):
     """LTV model along one trajectory by (7.5) (order-2 random walk), lambda by maximum likelihood on the grid
     ``lams`` (the log-likelihood of :func:`drake_est.identification.ltv.ltv_smoother` without the prior).
-    ``prior`` (T, n, n+m+1): prior mean of [A_t B_t c_t] (7.15) with covariance ``prior_cov``
-    (n+m+1, n+m+1) per row.  Returns (LtvModel, lambda)."""
+    A lambda whose fit is singular (too weak a random-walk prior for the excitation) is left out of the
+    selection; if every one is, IdentifiabilityError.  ``prior`` (T, n, n+m+1): prior mean of [A_t B_t c_t]
+    (7.15) with covariance ``prior_cov`` (n+m+1, n+m+1) per row.  Returns (LtvModel, lambda)."""
     from drake_est.identification.ltv import ltv_smoother
     Ub = np.hstack([U, np.ones((len(U), 1))])
     lams = np.logspace(-2, 4, 7) if lams is None else lams
     best, lam = -np.inf, None
     res = None
     for l in lams:
-        r = ltv_smoother(X, Ub, float(l), order=2, check=False)   # a singular fit raises anyway
+        try:
+            r = ltv_smoother(X, Ub, float(l), order=2, check=False)
+        except IdentifiabilityError:   # too little regularization for this trajectory: not a candidate
+            continue
         if r.loglik > best:
             best, lam, res = r.loglik, float(l), r
+    if res is None:
+        raise IdentifiabilityError(f"lams: the LTV fit (7.5) is singular for every lambda in the grid {list(lams)}")
     if prior is not None:
         res = ltv_smoother(X, Ub, lam, order=2, prior=prior, prior_cov=prior_cov, check=False)
     return LtvModel.from_result(res, bias_input=True), lam
@@ -92,7 +98,7 @@ def nn_prior(Xs, Us, X, U, seed=0, epochs=200):
 
 def mbrl(true_system, true_model, cost, x0, T, model="ltv", iterations=20, kl_step=400.0, sigma0=1.0,
          lower=-10.0, upper=10.0, seed=0, show_progress=False, kl_increase=2.0, kl_decrease=0.5, kl_max=1e5,
-         nn_prior_cov=1e-3):
+         nn_prior_cov=1e-3, noise_scale=1.0, lams=None):
     """Algorithm 7 on ``true_system`` (``.rollout(x0, T, policy)``), cost ``cost``, horizon ``T``.
 
     ``model="ltv-nn"``: the LTV fit with the prior of a network refit on all data every iteration, prior
@@ -100,10 +106,15 @@ def mbrl(true_system, true_model, cost, x0, T, model="ltv", iterations=20, kl_st
     (up to ``kl_max``) after an iteration that lowered the noise-free cost on the true system, by ``kl_decrease``
     after one that raised it.
 
+    ``noise_scale``: the exploration noise is N(0, noise_scale * Q_uu^{-1}) (1: the controller's own covariance
+    (11.11)); ``lams``: the lambda grid of the LTV fit (default :func:`fit_ltv`'s).
+
     ``true_model``: the exact :class:`drake_est.control.ilqr.Model` of the system (used only when
     ``model == "true"``).  Returns :class:`MbrlResult`."""
     if model not in MODELS:
         raise DataError(f"model must be one of {MODELS}, got {model!r}")
+    if not (noise_scale >= 0 and np.isfinite(noise_scale)):
+        raise DataError(f"noise_scale must be finite and >= 0, got {noise_scale}")
     if iterations < 1:
         raise DataError(f"iterations must be >= 1, got {iterations}")
     rng = np.random.default_rng(seed)
@@ -128,7 +139,7 @@ def mbrl(true_system, true_model, cost, x0, T, model="ltv", iterations=20, kl_st
     out.kl_bounds = []
     it = range(iterations)
     for _ in (progress(it, desc=f"mbrl {model} seed {seed}") if show_progress else it):
-        noise = ctrl.noise(rng)
+        noise = ctrl.noise(rng, noise_scale)
         Xr, Ur = true_system.rollout(x0, T, lambda t, x: ctrl.action(t, x, noise[t]))
         Xd, Ud = true_system.rollout(x0, T, lambda t, x: ctrl.action(t, x, None))
         out.rollout_costs.append(cost.value(Xr, Ur))
@@ -139,11 +150,11 @@ def mbrl(true_system, true_model, cost, x0, T, model="ltv", iterations=20, kl_st
         Xs.append(Xr)
         Us.append(Ur)
         if model == "ltv":
-            mdl, lam = fit_ltv(Xr, Ur)
+            mdl, lam = fit_ltv(Xr, Ur, lams=lams)
             out.lam.append(lam)
         elif model == "ltv-nn":
             pr = nn_prior(Xs, Us, Xr, Ur, seed=seed)
-            mdl, lam = fit_ltv(Xr, Ur, prior=pr, prior_cov=nn_prior_cov / len(Xs) * np.eye(pr.shape[2]))
+            mdl, lam = fit_ltv(Xr, Ur, lams=lams, prior=pr, prior_cov=nn_prior_cov / len(Xs) * np.eye(pr.shape[2]))
             out.lam.append(lam)
         else:
             A, B, c = fit_lti(Xs, Us)
