@@ -237,6 +237,9 @@ def _read_csv(path: Path):
             return _read_csv_rows(path, reader)
         except csv.Error as err:
             raise DataError(f"{path}: not a valid CSV near line {reader.line_num} ({err})") from None
+        except UnicodeDecodeError:
+            raise DataError(f"{path}: not a text CSV (binary or not UTF-8) near line {reader.line_num + 1}; "
+                            "expected a UTF-8 CSV with a header, or an NPZ") from None
 
 
 def _read_csv_rows(path: Path, reader):

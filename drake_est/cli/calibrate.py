@@ -54,7 +54,7 @@ def _read_table(path: Path) -> dict:
         try:
             with np.load(path, allow_pickle=False) as z:
                 return {k: z[k] for k in z.files}
-        except (ValueError, OSError, EOFError) as err:
+        except Exception as err:  # noqa: BLE001 - BadZipFile, zlib.error, truncated members...: one line
             raise DataError(f"{path}: not a readable NPZ file of numeric arrays ({type(err).__name__})") from None
     if path.suffix.lower() == ".csv":
         with open(path) as fh:
@@ -64,8 +64,8 @@ def _read_table(path: Path) -> dict:
         header = [h.strip() for h in header]
         try:
             arr = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-        except ValueError as err:
-            raise DataError(f"{path}: cannot parse CSV numbers ({err})") from None
+        except (ValueError, UnicodeDecodeError) as err:
+            raise DataError(f"{path}: cannot parse CSV numbers ({str(err).splitlines()[0][:120]})") from None
         if arr.shape[1] != len(header):
             raise DataError(f"{path}: header has {len(header)} columns but rows have {arr.shape[1]}")
         return {h: arr[:, i] for i, h in enumerate(header)}
