@@ -39,7 +39,7 @@ def _one(args):
 
 
 def mbrl_cartpole(out_dir, quick=False, seed=0, n_seeds=None, iterations=20, kl_step=400.0, jobs=None, nn_seeds=0,
-                  noise_scale=1.0, lam_grid=None, **kw):
+                  noise_scale=0.25, lam_grid=None, **kw):
     """Fig. 11.1 / 11.2: cost per learning iteration (median over seeds) for true-model DDP, LTV, LTI.
 
     Acceptance (issue 14): the median LTV cost comes within 5 % of the true-model DDP cost in at most 20
