@@ -123,6 +123,32 @@ def test_numba_and_numpy_likelihood_agree(scn):
     np.testing.assert_allclose(a[fin], b[fin], rtol=1e-10, atol=1e-10)
 
 
+@pytest.mark.skipif(F.numba is None, reason="numba not installed")
+def test_fused_step_equals_the_generic_filter_path(scn, monkeypatch):
+    """The compiled step (likelihood + weighting + resampling + prediction) gives the generic
+    ParticleFilter path's particles, weights, mean and ESS to 1e-10, resampling included."""
+    from drake_est.seam.simulate import measure_all, true_tool_pose
+    monkeypatch.delenv("DRAKE_EST_NO_NUMBA", raising=False)
+    pf, model = F.make_seam_filter(scn.robot, scn.X_FT, scn.compressed, F.SeamFilterConfig(n_particles=200))
+    xa, la = pf.initial_belief()
+    xb, lb = xa.copy(), la.copy()
+    n_res = 0
+    for k in range(40):
+        q = scn.q_ref[k]
+        y = measure_all(scn, model, true_tool_pose(scn, q, scn.force[k])[0], q, scn.force[k], 0, k)
+        u = np.concatenate([q, y[6:9]])
+        ra = F.filter_step(pf, xa, la, y, u, k)
+        monkeypatch.setenv("DRAKE_EST_NO_NUMBA", "1")
+        rb = F.filter_step(pf, xb, lb, y, u, k)
+        monkeypatch.delenv("DRAKE_EST_NO_NUMBA")
+        for a, b in zip(ra[:4], rb[:4]):
+            np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-10)
+        assert ra[4] == rb[4]
+        xa, la, xb, lb = ra[0], ra[1], rb[0], rb[1]
+        n_res += bool(np.all(la == la[0]))
+    assert n_res > 3           # resampling happened, so the index draw was compared too
+
+
 def test_filter_is_the_generic_particle_filter(scn):
     from drake_est.estimation.pf import ParticleFilter
     pf, model = F.make_seam_filter(scn.robot, scn.X_FT, scn.compressed, F.SeamFilterConfig(n_particles=100))

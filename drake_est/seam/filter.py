@@ -463,11 +463,22 @@ class SeamTrackingModel:
         return self.tool_pose(q)
 
     # -- the callables of ParticleFilter ------------------------------------------------------------
+    def noise_scale(self, u) -> np.ndarray:
+        """Standard deviations (6) of the transition noise, s = s0 + k ||f|| [m, rad]."""
+        cfg = self.config
+        fn = math.sqrt(u[6] * u[6] + u[7] * u[7] + u[8] * u[8]) if u is not None else 0.0
+        sp, sr = cfg.sigma_p0 + cfg.k_p * fn, cfg.sigma_r0 + cfg.k_r * fn
+        return np.array([sp, sp, sp, sr, sr, sr])
+
+    def _buffers(self):
+        b = self._cache.get("buffers")
+        if b is None:
+            b = self._cache["buffers"] = (np.empty(6), np.empty(3))
+        return b
+
     def transition(self, x, u, t, rng):
         """xi+ = xi + v, v ~ N(0, diag(s_p(f)^2, s_r(f)^2)): the mean F_k(q+) F_k(q)^-1 X in this chart."""
-        cfg = self.config
-        fn = float(np.linalg.norm(u[6:9])) if u is not None else 0.0
-        s = np.array([cfg.sigma_p0 + cfg.k_p * fn] * 3 + [cfg.sigma_r0 + cfg.k_r * fn] * 3)
+        s = self.noise_scale(u)
         z = self._pf.normals(t) if self._pf is not None else rng.standard_normal(x.shape)
         return x + z * s
 
@@ -528,14 +539,94 @@ def make_seam_filter(robot, X_FT, compressed, config: SeamFilterConfig | None = 
     pf = ParticleFilter(model.transition, model.measurement_logpdf, model.initial, config.n_particles, nx=6,
                         seed=seed, resample_threshold=config.resample_threshold, nu=9, ny=model.ny)
     model._pf = pf
+    pf._seam_model = model
     return pf, model
+
+
+def _weight_predict_point(x, logw, g, u0, thr, z, s, xo, lwo, xi, info):
+    """Fused weighting, systematic resampling and prediction of one step for all particles (compiled by
+    numba): the same arithmetic as the generic filter's ``_weight`` (Algorithm 1: w ~ w p(y|x), normalise,
+    ESS, weighted mean, resample when ESS < thr N) followed by the transition xi+ = xi + s * z.
+    Writes x+ to ``xo``, log-weights to ``lwo``, the weighted mean to ``xi`` and [log p(y), ESS, resampled]
+    to ``info``.  Returns 0, or 1 when the caller must use the generic path (NaN/+inf likelihoods, every
+    weight zero, or a non-finite predicted particle)."""
+    N, nx = x.shape
+    m = -np.inf
+    for i in range(N):
+        a = logw[i] + g[i]
+        if math.isnan(a) or a == np.inf:
+            return 1
+        lwo[i] = a
+        if a > m:
+            m = a
+    if m == -np.inf:
+        return 1
+    acc = 0.0
+    for i in range(N):
+        acc += math.exp(lwo[i] - m)
+    ll = m + math.log(acc)
+    ss = 0.0
+    for j in range(nx):
+        xi[j] = 0.0
+    for i in range(N):
+        lwo[i] = lwo[i] - ll
+        w = math.exp(lwo[i])
+        ss += w * w
+        for j in range(nx):
+            xi[j] += w * x[i, j]
+    ess = 1.0 / ss
+    info[0], info[1], info[2] = ll, ess, 0.0
+    if ess < thr * N:
+        info[2] = 1.0
+        c = 0.0
+        i = 0
+        c = math.exp(lwo[0])
+        for j in range(N):
+            pos = (u0 + j) / N
+            while c < pos and i < N - 1:
+                i += 1
+                c += math.exp(lwo[i])
+            for d in range(nx):
+                xo[j, d] = x[i, d] + z[j, d] * s[d]
+        lN = -math.log(N)
+        for j in range(N):
+            lwo[j] = lN
+    else:
+        for j in range(N):
+            for d in range(nx):
+                xo[j, d] = x[j, d] + z[j, d] * s[d]
+    for j in range(N):
+        for d in range(nx):
+            if not math.isfinite(xo[j, d]):
+                return 1
+    return 0
+
+
+_wp_kernel = None
 
 
 def filter_step(pf, x, logw, y, u, k: int):
     """One step of the seam-tracking filter (Algorithm 1 through the generic filter's public protocol):
     correct with y_k, take the weighted mean xi_k|k, predict with u_k.  Returns
     (x+, logw+, xi_hat (6), ess, degenerate) -- degenerate when every weight was zero (the filter then keeps
-    the predicted particles instead of returning NaN)."""
+    the predicted particles instead of returning NaN).
+
+    With numba (the default) the weighting, resampling and prediction run in one compiled kernel on the
+    generic filter's random numbers (``pf.normals``, ``pf.uniform``), giving the generic path's numbers;
+    any non-finite case (and ``DRAKE_EST_NO_NUMBA=1``) takes the generic path."""
+    global _wp_kernel
+    model = getattr(pf, "_seam_model", None)
+    if model is not None and use_numba():
+        if _wp_kernel is None:
+            _wp_kernel = numba.njit(cache=True)(_weight_predict_point)
+        x = np.ascontiguousarray(x, dtype=float)
+        logw = np.ascontiguousarray(logw, dtype=float)
+        g = np.asarray(model.measurement_logpdf(x, y, u, k), dtype=float)
+        buf = model._buffers()
+        xo, lwo, xi, info = np.empty_like(x), np.empty_like(logw), buf[0], buf[1]
+        if g.shape == (pf.N,) and _wp_kernel(x, logw, g, pf.uniform(k), float(pf.resample_threshold),
+                                             pf.normals(k), model.noise_scale(u), xo, lwo, xi, info) == 0:
+            return xo, lwo, xi.copy(), float(info[1]), False
     # the generic filter's correction step, which also returns the weighted mean and ESS it computes
     x, logw, ll, (ess, _res, degenerate, xi, _P) = pf._correct(x, logw, y, u, k)
     x, logw = pf.predict(x, logw, u=u, t=k)
