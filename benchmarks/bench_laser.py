@@ -84,7 +84,7 @@ def cells(n, seed=0, json_path=None, first=0):
         return et < 1e-3 and np.degrees(er) < 0.2
 
     c = {"cells": n, "first_cell": first, "labelled_right": 0, "auto_right": 0, "auto_refused": 0, "auto_silently_wrong": 0,
-         "auto_right_where_labelled_right": 0, "auto_refused_where_labelled_right": 0,
+         "auto_right_where_labelled_right": 0, "auto_refused_where_labelled_right": 0, "auto_wrong_where_labelled_right": 0,
          "cells_with_near_parallel_planes": 0, "auto_right_with_near_parallel_planes": 0}
     t_auto = 0.0
     for i in range(first, first + n):
@@ -107,6 +107,7 @@ def cells(n, seed=0, json_path=None, first=0):
         c["auto_silently_wrong"] += state == "wrong"
         c["auto_right_where_labelled_right"] += lab_ok and state == "right"
         c["auto_refused_where_labelled_right"] += lab_ok and state == "refused"
+        c["auto_wrong_where_labelled_right"] += lab_ok and state == "wrong"
         c["auto_right_with_near_parallel_planes"] += n_par > 0 and state == "right"
         print(f"cell {i:3d}: {K} planes, {n_par} near-parallel, labelled {'right' if lab_ok else 'WRONG'}, "
               f"automatic {state}" + (f" ({msg[:90]})" if state == "refused" else ""), flush=True)
