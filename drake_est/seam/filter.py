@@ -390,7 +390,7 @@ def seam_loglik(x, R_nom, p_nom, dp_r, dth_r, rob, T_S, meas, valid, radius, kno
         if _kernel is None:
             _kernel = numba.njit(cache=True, fastmath=False)(_seam_loglik_point)
         out = np.empty(x.shape[0])
-        _kernel(np.ascontiguousarray(x, dtype=float), R_nom, p_nom, dp_r, dth_r, rob, T_S, meas, valid,
+        _kernel(x if (x.dtype == np.float64 and x.flags.c_contiguous) else np.ascontiguousarray(x, dtype=float), R_nom, p_nom, dp_r, dth_r, rob, T_S, meas, valid,
                 float(radius), knots, normals, float(sigma), float(sigma_ang), bool(use_angle), out)
         return out
     ll = (rob[2] - 0.5 * (np.maximum(np.linalg.norm(x[:, :3] - dp_r, axis=1) - rob[0], 0.0) / rob[1]) ** 2
@@ -435,11 +435,12 @@ class SeamTrackingModel:
     # -- kinematics (one call per step, shared by all particles) ----------------------------------
     def tool_pose(self, q) -> np.ndarray:
         """F_k(q) X_FT as a 4x4 matrix."""
-        key = ("fk", tuple(np.asarray(q, float)))
+        q = np.asarray(q, float)
+        key = q.tobytes()
         hit = self._cache.get(key)
         if hit is None:
             r = self.robot
-            r.plant.SetPositions(r.context, np.asarray(q, float))
+            r.plant.SetPositions(r.context, q)
             hit = r.flange.CalcPoseInWorld(r.context).GetAsMatrix4() @ self.X_FT
             if len(self._cache) > 64:
                 self._cache.clear()
@@ -450,8 +451,10 @@ class SeamTrackingModel:
         """tau = J_v(q)^T f of a force f [N] at the TCP."""
         r = self.robot
         r.plant.SetPositions(r.context, np.asarray(q, float))
-        Jv = r.plant.CalcJacobianTranslationalVelocity(r.context, _KV, r.flange, self.X_FT[:3, 3],
-                                                       r.plant.world_frame(), r.plant.world_frame())
+        W = self._cache.get("world")
+        if W is None:
+            W = self._cache["world"] = r.plant.world_frame()
+        Jv = r.plant.CalcJacobianTranslationalVelocity(r.context, _KV, r.flange, self.X_FT[:3, 3], W, W)
         return Jv.T @ np.asarray(f, float)
 
     def robot_measurement_pose(self, q_m, f) -> np.ndarray:
@@ -497,13 +500,9 @@ class SeamTrackingModel:
         rob = np.array([d, cfg.sigma_robot, _hybrid_logD(d, cfg.sigma_robot, 3),
                         dr, cfg.sigma_robot_rot, _hybrid_logD(dr, cfg.sigma_robot_rot, 3)])
         S = self.n_sensors
-        meas = np.zeros((S, 3))
-        valid = np.zeros(S, np.int64)
-        for s in range(S):
-            ms = y[9 + 4 * s: 13 + 4 * s]
-            if ms[0] > 0.5:
-                valid[s] = 1
-                meas[s] = ms[1:]
+        ms = y[9:9 + 4 * S].reshape(S, 4)
+        valid = (ms[:, 0] > 0.5).astype(np.int64)
+        meas = np.where(valid[:, None] > 0, ms[:, 1:], 0.0)
         return seam_loglik(x, R_nom, p_nom, dp_r, dth_r, rob, self.T_S_arr, meas, valid, cfg.search_radius,
                            self.knots, self.normals, cfg.sigma_laser, cfg.sigma_angle, cfg.use_angle)
 
