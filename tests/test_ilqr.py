@@ -254,3 +254,26 @@ def test_ilqr_controller_in_a_diagram_with_the_drake_cartpole():
     assert abs(x_end[1] - ref.X[100, 1]) < 0.2
     u = ctrl.get_control_output_port().Eval(ctrl.GetMyContextFromRoot(ctx))
     assert abs(u[0]) <= 10.0
+
+
+def test_drake_model_differentiates_the_cartpole_diagram_with_the_actuator():
+    """CartAccelerationActuator converts to AutoDiffXd, so DrakeModel's Jacobians of the Diagram (plant order)
+    match the analytic ones of the cart-pole (8.11)-(8.12) (thesis order) after the permutation."""
+    from pydrake.systems.framework import DiagramBuilder
+
+    from drake_est.control.cartpole import CartPoleModel
+    from drake_est.control.drake_model import DrakeModel
+    from drake_est.systems.cartpole_plant import PLANT_FROM_THESIS, add_cartpole
+    builder = DiagramBuilder()
+    _, act = add_cartpole(builder)
+    builder.ExportInput(act.get_cart_acceleration_input_port(), "cart_acceleration")
+    dm = DrakeModel(builder.Build(), 0.01, input_port=0)
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(4, 4)) + np.array([np.pi - 0.5, 0, 0, 0])     # thesis order
+    U = rng.normal(size=(3, 1)) * 3
+    fx_d, fu_d, *_ = dm.linearize(X[:, PLANT_FROM_THESIS], U)
+    fx_a, fu_a, *_ = CartPoleModel(h=0.01).linearize(X, U)
+    P = np.eye(4)[PLANT_FROM_THESIS]             # plant state = P @ thesis state
+    np.testing.assert_allclose(fx_d, P @ fx_a @ P.T, atol=1e-10)
+    np.testing.assert_allclose(fu_d, P @ fu_a, atol=1e-10)
+    assert np.abs(fu_d).max() > 1e-3            # the input really enters through the actuator

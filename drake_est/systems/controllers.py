@@ -6,7 +6,8 @@ Thin wrappers: every number comes from :mod:`drake_est.control.ilqr` / :func:`ca
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import EventStatus, LeafSystem
+from pydrake.systems.framework import EventStatus, LeafSystem, LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
 
 from drake_est.control.ilqr import IlqrOptions, ilqr
 from drake_est.errors import DataError
@@ -162,44 +163,59 @@ def cart_force(x_plant, u, g=9.81, l=1.0, d=0.1, m_cart=1.0, m_pole=1.0):
     return (m_cart + m_pole) * u - m_pole * l * (thdd * np.cos(th) - w ** 2 * np.sin(th))
 
 
-class CartAccelerationActuator(LeafSystem):
-    """Force on the cart that realizes the commanded cart acceleration (input of (8.12)) on a force-actuated
-    cart-pole ``plant``, from the plant's mass matrix, bias and gravity terms (first row of
-    M [u, theta''] + C v - tau_g with theta'' from the unactuated row).
+@TemplateSystem.define("CartAccelerationActuator_")
+def CartAccelerationActuator_(T):
+    class Impl(LeafSystem_[T]):
+        """Force on the cart that realizes the commanded cart acceleration (input of (8.12)) on a
+        force-actuated cart-pole ``plant``, from the plant's mass matrix, bias and gravity terms (first row of
+        M [u, theta''] + C v - tau_g with theta'' from the unactuated row).
 
-    Input ports ``state`` [m, rad, m/s, rad/s] (plant order p, theta, v, omega) and ``cart_acceleration``
-    [m/s^2]; output port ``cart_force`` [N]."""
+        Input ports ``state`` [m, rad, m/s, rad/s] (plant order p, theta, v, omega) and ``cart_acceleration``
+        [m/s^2]; output port ``cart_force`` [N].  Scalar types float and AutoDiffXd (``ToAutoDiffXd()``
+        converts the internal copy of the plant too), so :class:`drake_est.control.drake_model.DrakeModel`
+        can differentiate a Diagram holding it."""
 
-    def __init__(self, plant):
-        super().__init__()
-        self._plant = plant
-        self._pctx = plant.CreateDefaultContext()
-        self._damping = np.array([plant.get_joint(plant.GetJointByName("hinge").index()).default_damping()])
-        self._state = self.DeclareVectorInputPort("state", 4)
-        self._acc = self.DeclareVectorInputPort("cart_acceleration", 1)
-        self._force = self.DeclareVectorOutputPort("cart_force", 1, self._calc)
+        def _construct(self, plant, converter=None):
+            LeafSystem_[T].__init__(self, converter)
+            self._plant = plant
+            self._pctx = plant.CreateDefaultContext()
+            self._damping = float(plant.get_joint(plant.GetJointByName("hinge").index()).default_damping())
+            self._state = self.DeclareVectorInputPort("state", 4)
+            self._acc = self.DeclareVectorInputPort("cart_acceleration", 1)
+            self._force = self.DeclareVectorOutputPort("cart_force", 1, self._calc)
 
-    def get_state_input_port(self):
-        return self._state
+        def _construct_copy(self, other, converter=None):
+            plant = other._plant.ToScalarType[T]()
+            Impl._construct(self, plant, converter=converter)
 
-    def get_cart_acceleration_input_port(self):
-        return self._acc
+        def get_state_input_port(self):
+            return self._state
 
-    def get_cart_force_output_port(self):
-        return self._force
+        def get_cart_acceleration_input_port(self):
+            return self._acc
 
-    def _calc(self, context, output):
-        x = self._state.Eval(context)
-        u = float(self._acc.Eval(context)[0])
-        p = self._plant
-        ctx = self._pctx
-        p.SetPositionsAndVelocities(ctx, x)
-        M = p.CalcMassMatrix(ctx)
-        rhs = p.CalcGravityGeneralizedForces(ctx) - p.CalcBiasTerm(ctx)
-        rhs[1] -= self._damping[0] * x[3]
-        # unactuated row: M10 u + M11 thdd = rhs1  ->  thdd; actuated row gives the force
-        thdd = (rhs[1] - M[1, 0] * u) / M[1, 1]
-        output.SetFromVector([M[0, 0] * u + M[0, 1] * thdd - rhs[0]])
+        def get_cart_force_output_port(self):
+            return self._force
+
+        def _calc(self, context, output):
+            x = self._state.Eval(context)
+            u = self._acc.Eval(context)[0]
+            p = self._plant
+            ctx = self._pctx
+            p.SetPositionsAndVelocities(ctx, x)
+            M = p.CalcMassMatrix(ctx)
+            # Drake's Build() may probe the port with NaN inputs: NaN in, NaN out, without a warning
+            with np.errstate(invalid="ignore"):
+                rhs = p.CalcGravityGeneralizedForces(ctx) - p.CalcBiasTerm(ctx)
+                rhs[1] = rhs[1] - self._damping * x[3]
+                # unactuated row: M10 u + M11 thdd = rhs1  ->  thdd; actuated row gives the force
+                thdd = (rhs[1] - M[1, 0] * u) / M[1, 1]
+                output.SetFromVector([M[0, 0] * u + M[0, 1] * thdd - rhs[0]])
+
+    return Impl
+
+
+CartAccelerationActuator = CartAccelerationActuator_[None]
 
 
 # =============================================================================================
