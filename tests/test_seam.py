@@ -149,6 +149,33 @@ def test_fused_step_equals_the_generic_filter_path(scn, monkeypatch):
     assert n_res > 3           # resampling happened, so the index draw was compared too
 
 
+@pytest.mark.skipif(F.numba is None, reason="numba not installed")
+def test_laser_measurement_compiled_equals_numpy(scn, monkeypatch):
+    """The compiled stripe simulation gives the numpy one's seam point and surface angle (and None when
+    the plane misses the seam) on perturbed tool poses along the path."""
+    from drake_est.seam.simulate import true_tool_pose
+    rng = np.random.default_rng(3)
+    P, Nrm = scn.seam.points, scn.seam.normals
+    n_hit = n_miss = 0
+    for k in range(0, scn.T, 37):
+        X = true_tool_pose(scn, scn.q_ref[k], scn.force[k])[0].copy()
+        X[:3, 3] += rng.normal(0, 2e-3, 3)
+        for d in (0.04, 0.08, 0.5):
+            T = F.sensor_mount(d)
+            monkeypatch.delenv("DRAKE_EST_NO_NUMBA", raising=False)
+            a = F.laser_measurement(X, T, P, Nrm)
+            monkeypatch.setenv("DRAKE_EST_NO_NUMBA", "1")
+            b = F.laser_measurement(X, T, P, Nrm)
+            assert (a is None) == (b is None)
+            if a is None:
+                n_miss += 1
+                continue
+            n_hit += 1
+            np.testing.assert_allclose(a[0], b[0], rtol=1e-10, atol=1e-12)
+            assert abs(a[1] - b[1]) < 1e-10
+    assert n_hit > 10 and n_miss > 0
+
+
 def test_filter_is_the_generic_particle_filter(scn):
     from drake_est.estimation.pf import ParticleFilter
     pf, model = F.make_seam_filter(scn.robot, scn.X_FT, scn.compressed, F.SeamFilterConfig(n_particles=100))

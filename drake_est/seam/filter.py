@@ -70,13 +70,11 @@ def so3_exp(w):
 
 def so3_log(R) -> np.ndarray:
     """Rotation vector of a rotation matrix (angle < pi)."""
-    R = np.asarray(R, float)
-    c = np.clip((np.trace(R) - 1) / 2, -1.0, 1.0)
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = np.asarray(R, float).tolist()
+    c = min(max((r00 + r11 + r22 - 1) / 2, -1.0), 1.0)
     th = math.acos(c)
-    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    if th < 1e-8:
-        return 0.5 * v
-    return th / (2 * math.sin(th)) * v
+    f = 0.5 if th < 1e-8 else th / (2 * math.sin(th))
+    return np.array([f * (r21 - r12), f * (r02 - r20), f * (r10 - r01)])
 
 
 def sensor_mount(distance: float) -> np.ndarray:
@@ -98,10 +96,61 @@ def surface_angle(R_WS, normal_W) -> float:
     return math.atan2(n[1], -n[0])
 
 
+def _laser_point(X_WS, knots, normals, out):
+    """Loop version of :func:`laser_measurement` for a sensor pose X_WS (compiled by numba): writes
+    [m_x, m_y, surface angle] to ``out``; returns False when the laser plane does not meet the seam."""
+    K = knots.shape[0]
+    sp = 0.0
+    best, bi, bg = np.inf, -1, 0.0
+    for k in range(K):
+        s = ((knots[k, 0] - X_WS[0, 3]) * X_WS[0, 2] + (knots[k, 1] - X_WS[1, 3]) * X_WS[1, 2]
+             + (knots[k, 2] - X_WS[2, 3]) * X_WS[2, 2])
+        if k > 0 and (sp <= 0) != (s <= 0):
+            g = sp / (sp - s)
+            dd = 0.0
+            for r in range(3):
+                e = knots[k - 1, r] + g * (knots[k, r] - knots[k - 1, r]) - X_WS[r, 3]
+                dd += e * e
+            if dd < best:
+                best, bi, bg = dd, k - 1, g
+        sp = s
+    if bi < 0:
+        return False
+    m0 = 0.0
+    m1 = 0.0
+    n0 = 0.0
+    n1 = 0.0
+    nn = 0.0
+    for r in range(3):
+        e = knots[bi, r] + bg * (knots[bi + 1, r] - knots[bi, r]) - X_WS[r, 3]
+        m0 += X_WS[r, 0] * e
+        m1 += X_WS[r, 1] * e
+        nr = (1 - bg) * normals[bi, r] + bg * normals[bi + 1, r]
+        nn += nr * nr
+        n0 += X_WS[r, 0] * nr
+        n1 += X_WS[r, 1] * nr
+    nn = math.sqrt(nn)
+    out[0], out[1], out[2] = m0, m1, math.atan2(n1 / nn, -(n0 / nn))
+    return True
+
+
+_laser_kernel = None
+
+
 def laser_measurement(X_WT, T_S, knots, normals):
     """What a laser stripe mounted at T_S on a tool at pose X_WT (4x4) measures on the polyline ``knots``:
-    (m (2) [m], surface angle [rad]) or None when the laser plane does not meet the seam."""
+    (m (2) [m], surface angle [rad]) or None when the laser plane does not meet the seam.  Compiled loop
+    (:func:`_laser_point`) unless ``DRAKE_EST_NO_NUMBA=1``."""
+    global _laser_kernel
     X_WS = X_WT @ T_S
+    if use_numba():
+        if _laser_kernel is None:
+            _laser_kernel = numba.njit(cache=True)(_laser_point)
+        out = np.empty(3)
+        if not _laser_kernel(X_WS, np.ascontiguousarray(knots, dtype=float),
+                             np.ascontiguousarray(normals, dtype=float), out):
+            return None
+        return out[:2], float(out[2])
     R, o = X_WS[:3, :3], X_WS[:3, 3]
     n = R[:, 2]
     s = (knots - o) @ n
