@@ -322,6 +322,11 @@ def _seam_loglik_point(x, R_nom, p_nom, dp_r, dth_r, rob, T_S, meas, valid, radi
     _cand(R_nom, p_nom, T_S, meas, knots, radius, segs, nseg)
     c0 = -math.log(2 * math.pi * sigma * sigma)
     c1 = -0.5 * math.log(2 * math.pi * sigma_ang * sigma_ang)
+    ca = np.empty(S)
+    sa = np.empty(S)
+    for s in range(S):
+        ca[s] = math.cos(meas[s, 2])
+        sa[s] = math.sin(meas[s, 2])
     Rl = np.empty((3, 3))
     R = np.empty((3, 3))
     RS = np.empty((3, 3))
@@ -403,9 +408,8 @@ def _seam_loglik_point(x, R_nom, p_nom, dp_r, dth_r, rob, T_S, meas, valid, radi
                 m2 = (1 - bg) * normals[bj, 2] + bg * normals[bj + 1, 2]
                 nS0 = RS[0, 0] * m0 + RS[1, 0] * m1 + RS[2, 0] * m2
                 nS1 = RS[0, 1] * m0 + RS[1, 1] * m1 + RS[2, 1] * m2
-                ang = math.atan2(nS1, -nS0)
-                da = ang - meas[s, 2] + math.pi
-                da = da - 2 * math.pi * math.floor(da / (2 * math.pi)) - math.pi
+                # wrapped difference atan2(nS1, -nS0) - angle as one atan2 of the rotated vector
+                da = math.atan2(nS1 * ca[s] + nS0 * sa[s], nS1 * sa[s] - nS0 * ca[s])
                 ll += c1 - 0.5 * (da / sigma_ang) ** 2
         out[i] = ll
 
