@@ -147,10 +147,11 @@ def run(args) -> int:
     for name, val, lo in (("--iters", args.iters, 1), ("--min-planes", args.min_planes, 1)):
         if val < lo:
             raise DataError(f"{name} must be >= {lo}, got {val}")
-    for name, val in (("--length-scale", args.length_scale), ("--assign-threshold", args.assign_threshold),
-                      ("--mass", args.mass)):
-        if val is not None and not val > 0:
-            raise DataError(f"{name} must be > 0, got {val}")
+    from drake_est.cli._common import check_number
+
+    for name, val, hi in (("--length-scale", args.length_scale, 1e6), ("--assign-threshold", args.assign_threshold, 10.0),
+                          ("--mass", args.mass, 1e4)):
+        check_number(name, val, 0, hi, lo_strict=True)
     tab = _read_table(path)
     scale = args.length_scale
     np.set_printoptions(precision=5, suppress=True)
