@@ -79,10 +79,13 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     the data selection (9.9) left out (a delay between torque and position, backlash or an inertia error
     shows there first).  The final model is evaluated at those samples through the same columns
     (:func:`~drake_est.identification.friction.extensions.columns_at`); None when an extension cannot be
-    evaluated there (gear coupling, payload) or too few such samples exist."""
+    evaluated there (gear coupling, payload), for robot models (inverse dynamics only at the selected rows)
+    or when too few such samples exist."""
     from drake_est.diagnose.core import Model
     from drake_est.identification.friction.extensions import columns_at
     jd = prep.joints[j]
+    if prep.robot is not None:
+        return None       # the rigid-body torque is only computed at the selected rows
     model = getattr(fit, "_model", None)
     if model is None or model.shared_exts():
         return None
