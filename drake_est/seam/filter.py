@@ -21,7 +21,9 @@ per laser stripe [valid (1 or 0), m (2) [m] seam point in the laser plane (senso
   seam along the particle's laser plane z_S = 0 (p_i = p_1 + gamma v); e = m_hat - p_i ~ N(0, s_l^2 I);
   optionally the surface angle around the plane normal, compared with the particle's hypothesis.
 
-``DRAKE_EST_NO_NUMBA=1`` selects the numpy path of the laser likelihood (same numbers, tested to 1e-10).
+With numba the likelihood, the step's weighting/resampling/prediction (:func:`filter_step`) and the simulated
+laser stripes run as compiled loops; ``DRAKE_EST_NO_NUMBA=1`` selects the numpy paths (same numbers, tested to
+1e-10).
 """
 from __future__ import annotations
 
@@ -630,9 +632,8 @@ def _weight_predict_point(x, logw, g, u0, thr, z, s, xo, lwo, xi, info):
     info[0], info[1], info[2] = ll, ess, 0.0
     if ess < thr * N:
         info[2] = 1.0
-        c = 0.0
         i = 0
-        c = math.exp(lwo[0])
+        c = math.exp(lwo[0])                 # running cumulative weight (numpy's cumsum order)
         for j in range(N):
             pos = (u0 + j) / N
             while c < pos and i < N - 1:
