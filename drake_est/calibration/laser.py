@@ -367,12 +367,13 @@ def _split_by_offset(P, pts, idx, labels, result, sigma):
     changed = False
     for j in range(K):
         m = labels == j
-        if np.sqrt(np.mean(res[m] ** 2)) <= 4.0 * sigma:
-            continue
         scans = np.unique(idx[m])
         if len(scans) < 4:
             continue
+        # per-scan median offsets: robust to a scan that also hits a neighbouring surface at a corner
         off = np.array([np.median(res[m & (idx == s)]) for s in scans])
+        if np.sqrt(np.mean((off - np.median(off)) ** 2)) <= 4.0 * sigma:
+            continue
         o = np.sort(off)
         gaps = np.diff(o)
         # the largest gap with at least 2 scans on each side
@@ -399,6 +400,7 @@ def _auto_assign(P, pts, idx, T, n_iter, method, axes, kind, tol, min_planes, ma
         keep = labels_used >= 0
         result = _iterate(P, pts[keep], idx[keep], labels_used[keep], T, n_iter, method, axes, kind, tol,
                           min_planes, max_condition, joint_offsets)
+        result_labels = labels_used   # the partition this result was computed with
         T = result.T
         if np.isfinite(sigma) and n_planes is None:
             split = _split_by_offset(P, pts[keep], idx[keep], labels_used[keep], result, sigma)
@@ -413,10 +415,37 @@ def _auto_assign(P, pts, idx, T, n_iter, method, axes, kind, tol, min_planes, ma
         if _same_partition(new, labels_used):
             break
         labels_used = new
-    return result, labels_used
+    return result, result_labels
 
 
 _RESIDUAL_FACTOR = 1.5   # accepted per-plane RMS / noise level measured inside the scans
+_OUTLIER_FRACTION = 0.1  # at most this fraction of a plane's points may lie off it (a scan across a corner)
+
+
+def _drop_outlier_points(P, pts, idx, res, lab, sigma, T0, n_iter, method, axes, kind, tol, min_planes,
+                         max_condition, joint_offsets):
+    """Points of an assigned scan lying more than 5 noise levels off its plane (a scan that also hits a
+    neighbouring surface) are excluded (counted in ``n_excluded``) and T is re-solved without them; a
+    plane with more than 10 % such points is not one plane (message returned instead)."""
+    keep = lab >= 0
+    r = np.full(len(lab), np.nan)
+    P_rb = transform_points(P, res.T, pts[keep], idx[keep])
+    r[keep] = np.einsum("ni,ni->n", P_rb, res.planes[lab[keep], :3]) - res.planes[lab[keep], 3]
+    out = keep & (np.abs(np.nan_to_num(r)) > 5.0 * sigma)
+    if not out.any():
+        return res, lab
+    for j in range(len(res.planes)):
+        m = lab == j
+        frac = out[m].mean() if m.any() else 0.0
+        if frac > _OUTLIER_FRACTION:
+            return (f"plane {j} has {100 * frac:.0f} % of its points more than 5 noise levels "
+                    f"({5e3 * sigma:.2g} mm) off it")
+    lab = lab.copy()
+    lab[out] = -1
+    keep = lab >= 0
+    res = _iterate(P, pts[keep], idx[keep], lab[keep], res.T, n_iter, method, axes, kind, tol, min_planes,
+                   max_condition, joint_offsets)
+    return res, lab
 
 
 def _auto_assign_checked(P, pts, idx, T0, n_iter, method, axes, kind, tol, min_planes, max_condition,
@@ -438,6 +467,13 @@ def _auto_assign_checked(P, pts, idx, T0, n_iter, method, axes, kind, tol, min_p
         except IdentifiabilityError as e:
             errors.append(str(e).split(";")[0])
             continue
+        if np.isfinite(sigma):
+            cleaned = _drop_outlier_points(P, pts, idx, res, lab, sigma, T0, n_iter, method, axes, kind, tol,
+                                           min_planes, max_condition, joint_offsets)
+            if isinstance(cleaned, str):
+                errors.append(cleaned)
+                continue
+            res, lab = cleaned
         prms = _plane_rms(res)
         # at the right answer every plane fits to the noise level (RMS/sigma ~ 1 within a few %, planes
         # hold >= tens of points); a merged or mixed plane, or a wrong local minimum, does not
