@@ -1,7 +1,6 @@
 """The diagnosis report: ``report.json`` (fixed keys), ``report.md`` and the PNG plots it links."""
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -224,7 +223,12 @@ class DiagnosisReport:
         from drake_est.diagnose.plots import write_plots
         self.files = write_plots(self, out)
         d = self.to_dict()
-        (out / "report.json").write_text(json.dumps(d, indent=2))
+        from drake_est.jsonutil import dump_json, nonfinite_to_null
+
+        d, undefined = nonfinite_to_null(d)   # strict JSON: undefined numbers are null, and listed
+        if undefined:
+            d["undefined_numbers"] = undefined
+        dump_json(d, out / "report.json")
         (out / "report.md").write_text(markdown(d))
         return out
 
