@@ -208,10 +208,10 @@ def test_filterpy_agrees():
     np.testing.assert_allclose(sm.P_smooth, Ps, atol=1e-10)
 
 
-def test_fused_equals_numpy_on_random_models():
+def test_fused_equals_numpy_on_random_models(require_module):
     """Property: on random stable models (any nx, ny, with/without input, missing rows) the compiled loop
     gives the numpy loop's numbers to 1e-10."""
-    hyp = pytest.importorskip("hypothesis")
+    hyp = require_module("hypothesis")
     from hypothesis import strategies as st
 
     @hyp.settings(max_examples=10, deadline=None, derandomize=True)

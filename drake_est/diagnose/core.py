@@ -17,9 +17,11 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+
 import scipy.stats
 
 import drake_est.diagnose.detectors as det
+from drake_est.diagnose.quantization import torque_step  # noqa: F401  (re-exported)
 from drake_est.diagnose.nominal import OUTLIER_MAD, block_index, nominal_columns, nominal_names, prepare
 from drake_est.metrics import metrics_table
 from drake_est.regression import ridge_solve
@@ -245,20 +247,6 @@ class DiagnosisResult:
     timing: dict = field(default_factory=dict)
     sigma: dict = field(default_factory=dict)
     unexplained: list = field(default_factory=list)
-
-
-def torque_step(y) -> float:
-    """The quantization step of a torque signal (0 when it is not on a grid): the smallest gap between
-    distinct values, when at least 99 % of the values sit on that grid."""
-    u = np.unique(np.asarray(y, float))
-    if u.size < 3 or u.size > 0.5 * y.size:
-        return 0.0
-    d = np.diff(u)
-    step = float(np.min(d[d > 1e-12 * max(np.ptp(u), 1e-300)])) if np.any(d > 0) else 0.0
-    if step <= 0:
-        return 0.0
-    k = (u - u[0]) / step
-    return step if np.mean(np.abs(k - np.round(k)) < 0.05) > 0.99 else 0.0
 
 
 def _above_quantization(prep, fit0, fit1, ext) -> bool:

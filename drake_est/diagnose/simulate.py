@@ -18,10 +18,10 @@ abrupt-change model.
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
 
 from drake_est.diagnose.nominal import nominal_names
 from drake_est.errors import DrakeEstError
+from drake_est.systems.friction import DiagnosedFriction  # noqa: F401  (the system lives in systems/)
 from drake_est.identification.friction import (Coulomb, EnergyDynamics, ExtensionTerm, JointFriction, Viscous,
                                                unit_energy)
 
@@ -113,47 +113,6 @@ class FrictionLaw:
             F[c] = float(m.predict(q, v, E[c:c + 1] if m.needs_energy else None, sign_eps=self.sign_eps,
                                    t=np.array([t]))[0])
         return F
-
-
-class DiagnosedFriction(LeafSystem):
-    """Drake system of a diagnosed friction model with the *measured* energy history (used by the
-    windowed simulation error; :func:`drake_est.diagnose.friction_system` gives the
-    :class:`~drake_est.systems.friction.FrictionModel` of the same models, with the energy as state).
-
-    Input ports ``joint_positions`` [rad] and ``joint_velocities`` [rad/s] (robot coordinates);
-    output ``friction_torques`` [N m] (the torque the actuators spend on friction; feed its
-    negative to the plant). Time enters through the Context (abrupt change, energy history)."""
-
-    def __init__(self, law: FrictionLaw, n_robot: int, robot_cols: dict):
-        super().__init__()
-        self._law = law
-        self._n = n_robot
-        self._map = [(law.log_joints.index(j), robot_cols[j]) for j in law.log_joints if j in robot_cols]
-        self._positions = self.DeclareVectorInputPort("joint_positions", n_robot)
-        self._velocities = self.DeclareVectorInputPort("joint_velocities", n_robot)
-        self._torques = self.DeclareVectorOutputPort("friction_torques", n_robot, self._calc)
-
-    def get_joint_positions_input_port(self):
-        return self._positions
-
-    def get_joint_velocities_input_port(self):
-        return self._velocities
-
-    def get_friction_torques_output_port(self):
-        return self._torques
-
-    def _calc(self, context, output):
-        qr = self._positions.Eval(context)
-        vr = self._velocities.Eval(context)
-        m = len(self._law.log_joints)
-        q, v = np.zeros(m), np.zeros(m)
-        for c, rc in self._map:
-            q[c], v[c] = qr[rc], vr[rc]
-        F = self._law.friction(context.get_time(), q, v)
-        out = np.zeros(self._n)
-        for c, rc in self._map:
-            out[rc] = F[c]
-        output.SetFromVector(out)
 
 
 def _windows(result, window_s, n_windows):

@@ -81,7 +81,6 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     (:func:`~drake_est.identification.friction.extensions.columns_at`); None when an extension cannot be
     evaluated there (gear coupling, payload), for robot models (inverse dynamics only at the selected rows)
     or when too few such samples exist."""
-    from drake_est.diagnose.core import Model
     from drake_est.identification.friction.extensions import columns_at
     jd = prep.joints[j]
     if prep.robot is not None:
@@ -104,7 +103,6 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     pred = np.hstack(blocks) @ fit.coef[j]
     e = (jd.tau - jd.rb)[idx] - pred
     e = e - e.mean()
-    _ = Model
     return _anova(jd.a[idx], e)
 
 
@@ -131,7 +129,7 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
         if r is not None:
             tests.append((j, "acceleration_excluded_samples", r))
     n_tests = max(len(tests), 1)
-    from drake_est.diagnose.core import torque_step
+    from drake_est.diagnose.quantization import torque_step
     steps = {j: prep.meta.get("tau_step", {}).get(j, None) for j in prep.joints}
     steps = {j: (torque_step(prep.joints[j].tau) if s is None else s) for j, s in steps.items()}
     var = {j: float(np.var((jd.y - fit.pred[j])[jd.val])) for j, jd in prep.joints.items()}

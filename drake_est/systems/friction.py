@@ -305,6 +305,51 @@ def add_friction(builder, plant, friction: FrictionModel, actuation_source=None)
     return add
 
 
+class DiagnosedFriction(LeafSystem):
+    """Drake system of a diagnosed friction model with the *measured* energy history (used by the
+    windowed simulation error; :func:`drake_est.diagnose.friction_system` gives the
+    :class:`~drake_est.systems.friction.FrictionModel` of the same models, with the energy as state).
+
+    Input ports ``joint_positions`` [rad] and ``joint_velocities`` [rad/s] (robot coordinates);
+    output ``friction_torques`` [N m] (the torque the actuators spend on friction; feed its
+    negative to the plant). Time enters through the Context (abrupt change, energy history).
+
+    ``law`` is any object with ``log_joints`` (the log's 1-based joint numbers) and
+    ``friction(t, q, v)`` on log-joint vectors (:class:`drake_est.diagnose.simulate.FrictionLaw`);
+    ``robot_cols`` maps a log joint to its index in the robot's joint vector."""
+
+    def __init__(self, law, n_robot: int, robot_cols: dict):
+        super().__init__()
+        self._law = law
+        self._n = n_robot
+        self._map = [(law.log_joints.index(j), robot_cols[j]) for j in law.log_joints if j in robot_cols]
+        self._positions = self.DeclareVectorInputPort("joint_positions", n_robot)
+        self._velocities = self.DeclareVectorInputPort("joint_velocities", n_robot)
+        self._torques = self.DeclareVectorOutputPort("friction_torques", n_robot, self._calc)
+
+    def get_joint_positions_input_port(self):
+        return self._positions
+
+    def get_joint_velocities_input_port(self):
+        return self._velocities
+
+    def get_friction_torques_output_port(self):
+        return self._torques
+
+    def _calc(self, context, output):
+        qr = self._positions.Eval(context)
+        vr = self._velocities.Eval(context)
+        m = len(self._law.log_joints)
+        q, v = np.zeros(m), np.zeros(m)
+        for c, rc in self._map:
+            q[c], v[c] = qr[rc], vr[rc]
+        F = self._law.friction(context.get_time(), q, v)
+        out = np.zeros(self._n)
+        for c, rc in self._map:
+            out[rc] = F[c]
+        output.SetFromVector(out)
+
+
 def contract_cases():
     """FrictionModel (Coulomb + viscous, direction-dependent, and an energy model with discrete state)
     and TrueJointFriction; expected outputs from the plain models (JointFriction.predict, FrictionTruth.torque)."""
@@ -333,6 +378,24 @@ def contract_cases():
     def truth_expected(s):
         return {"friction_torques": truth.torque(q, v, 0.05)}
 
+    class _Law:                                   # a stand-in for diagnose.simulate.FrictionLaw
+        log_joints = [2, 1]
+
+        def __init__(self):
+            self.m = [JointFriction.coulomb_viscous(1.0, 0.5, index=0), JointFriction.coulomb_viscous(2.0, 0.2, index=0)]
+
+        def friction(self, t, q, v):
+            return np.array([float(m.predict(q[None, c:c + 1], v[None, c:c + 1])[0]) * (1.0 + t)
+                             for c, m in enumerate(self.m)])
+
+    def make_diag():
+        return DiagnosedFriction(_Law(), 2, {1: 0, 2: 1})
+
+    def diag_expected(s):
+        F = _Law().friction(0.05, np.array([q[1], q[0]]), np.array([v[1], v[0]]))
+        return {"friction_torques": [F[1], F[0]]}
+
     return [ContractCase(make_cv, inputs, expected=cv_expected, label="coulomb_viscous"),
+            ContractCase(make_diag, inputs, expected=diag_expected, label="diagnosed (time-varying law)"),
             ContractCase(make_energy, inputs, t_final=0.05, label="energy state"),
             ContractCase(lambda: TrueJointFriction(truth), inputs, expected=truth_expected, label="truth")]
