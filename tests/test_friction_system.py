@@ -119,3 +119,25 @@ def test_bad_inputs():
     m = build_model("nominal", np.zeros(5), np.ones(5))
     with pytest.raises(DrakeEstError, match="not fitted"):
         FrictionModel([m])
+
+
+def test_add_friction_is_the_builder_set():
+    """add_friction wraps builders.AddJointFriction: Gain without a source, Adder(source, -F) with one."""
+    from pydrake.systems.primitives import Adder, ConstantVectorSource, Gain
+    builder = DiagramBuilder()
+    plant = _disk_plant(builder)
+    out = add_friction(builder, plant, FrictionModel.coulomb_viscous([0.4], [0.3]))
+    assert isinstance(out, Gain)
+    builder = DiagramBuilder()
+    plant = _disk_plant(builder)
+    src = builder.AddSystem(ConstantVectorSource([1.5]))
+    fm = FrictionModel.coulomb_viscous([0.4], [0.3])
+    out = add_friction(builder, plant, fm, actuation_source=src.get_output_port())
+    assert isinstance(out, Adder)
+    diagram = builder.Build()
+    ctx = diagram.CreateDefaultContext()
+    plant.SetVelocities(plant.GetMyMutableContextFromRoot(ctx), [2.0])
+    u = out.get_output_port().Eval(out.GetMyContextFromRoot(ctx))
+    assert u[0] == pytest.approx(1.5 - (0.4 + 0.3 * 2.0), rel=1e-12)
+    with pytest.raises(DrakeEstError, match="positions"):
+        add_friction(DiagramBuilder(), plant, FrictionModel.coulomb_viscous([1.0, 1.0], [1.0, 1.0]))

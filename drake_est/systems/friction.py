@@ -282,27 +282,16 @@ class TrueJointFriction(LeafSystem):
 def add_friction(builder, plant, friction: FrictionModel, actuation_source=None):
     """Wire ``friction`` into ``plant``: its positions/velocities feed the friction
     model and ``-F`` (plus ``actuation_source``'s output port, if given) drives the
-    plant's actuation. Returns the Adder (or Gain) that feeds the actuation."""
-    from pydrake.systems.primitives import Adder, Demultiplexer, Gain
+    plant's actuation. Returns the Adder (or Gain) that feeds the actuation.
+
+    A thin wrapper over :func:`drake_est.systems.builders.AddJointFriction` (the one builder set)
+    that first checks the plant and the friction model have the same number of joints."""
+    from drake_est.systems.builders import AddJointFriction
 
     n = friction.n_joints
     if plant.num_positions() != n or plant.num_velocities() != n:
         raise DrakeEstError(f"plant has {plant.num_positions()} positions, friction model has {n} joints")
-    builder.AddSystem(friction)
-    demux = builder.AddSystem(Demultiplexer([n, n]))
-    builder.Connect(plant.get_state_output_port(), demux.get_input_port(0))
-    builder.Connect(demux.get_output_port(0), friction.get_joint_positions_input_port())
-    builder.Connect(demux.get_output_port(1), friction.get_joint_velocities_input_port())
-    neg = builder.AddSystem(Gain(-1.0, n))
-    builder.Connect(friction.get_friction_torques_output_port(), neg.get_input_port())
-    if actuation_source is None:
-        builder.Connect(neg.get_output_port(), plant.get_actuation_input_port())
-        return neg
-    add = builder.AddSystem(Adder(2, n))
-    builder.Connect(actuation_source, add.get_input_port(0))
-    builder.Connect(neg.get_output_port(), add.get_input_port(1))
-    builder.Connect(add.get_output_port(), plant.get_actuation_input_port())
-    return add
+    return AddJointFriction(builder, plant, friction, actuation_source=actuation_source).actuation
 
 
 class DiagnosedFriction(LeafSystem):
