@@ -494,7 +494,15 @@ def _auto_assign_checked(P, pts, idx, T0, n_iter, method, axes, kind, tol, min_p
     if not sols:
         raise IdentifiabilityError(
             f"automatic plane assignment failed its own check ({errors[0] if errors else 'no solution'}); {ask}")
-    return sols[0]
+    res, lab = sols[0]
+    # the two-step iteration can stop at different fixed points depending on where the rounds left it;
+    # finish at the least-squares optimum (13.29) for the found partition, so the answer does not
+    # depend on the path taken
+    keep = lab >= 0
+    res.T = refine_transform(P, pts[keep], idx[keep], lab[keep], res.T, axes)
+    P_rb = transform_points(P, res.T, pts[keep], idx[keep])
+    res.planes = _fit_planes(P_rb, lab[keep], len(res.planes))
+    return res, lab
 
 
 def _same_partition(a, b) -> bool:
