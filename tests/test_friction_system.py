@@ -141,3 +141,80 @@ def test_add_friction_is_the_builder_set():
     assert u[0] == pytest.approx(1.5 - (0.4 + 0.3 * 2.0), rel=1e-12)
     with pytest.raises(DrakeEstError, match="positions"):
         add_friction(DiagramBuilder(), plant, FrictionModel.coulomb_viscous([1.0, 1.0], [1.0, 1.0]))
+
+
+def _ad_gradient(system, q, v):
+    from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
+    ad = system.ToAutoDiffXd()
+    ctx = ad.CreateDefaultContext()
+    x = InitializeAutoDiff(np.concatenate([q, v])).ravel()
+    ad.get_input_port(0).FixValue(ctx, x[:q.size])
+    ad.get_input_port(1).FixValue(ctx, x[q.size:])
+    F = ad.get_output_port(0).Eval(ctx)
+    return ExtractValue(F).ravel(), ExtractGradient(F)
+
+
+def _fd_gradient(fm, q, v, h=1e-6):
+    n = q.size
+    cols = []
+    for i in range(2 * n):
+        e = np.zeros(2 * n)
+        e[i] = h
+        cols.append((fm.friction(q + e[:n], v + e[n:]) - fm.friction(q - e[:n], v - e[n:])) / (2 * h))
+    return np.column_stack(cols)
+
+
+def test_autodiff_gradient_equals_finite_difference():
+    """FrictionModel.ToAutoDiffXd(): dF/d(q, v) of Coulomb + viscous (9.2), direction-dependent (9.3),
+    gravity-in-position and a position expansion equals central differences of the float model."""
+    from drake_est.identification.friction.terms import BFETerm, Coulomb, Gravity, Viscous
+    rng = np.random.default_rng(3)
+    Q, DQ = rng.uniform(-1, 1, (400, 3)), rng.uniform(-1, 1, (400, 3))
+    m0 = JointFriction.coulomb_viscous(2.0, 0.8, index=0, kc_minus=1.5)
+    m1 = JointFriction([Coulomb(), Viscous(), Gravity()], index=1, lam=0.0)
+    m1.fit(Q, DQ, 1.0 * np.sign(DQ[:, 1]) + 0.5 * DQ[:, 1] + 0.3 * np.sin(Q[:, 1]))
+    m2 = JointFriction([Coulomb(), Viscous(), BFETerm.from_data(["q"], Q, DQ, 2, 5)], index=2, lam=1e-3)
+    m2.fit(Q, DQ, np.sign(DQ[:, 2]) + 0.2 * np.cos(3 * Q[:, 2]))
+    fm = FrictionModel([m0, m1, m2], sign_eps=0.05)
+    q, v = np.array([0.3, -0.4, 0.2]), np.array([0.02, -0.03, 0.1])
+    F, G = _ad_gradient(fm, q, v)
+    np.testing.assert_allclose(F, fm.friction(q, v), rtol=1e-12, atol=1e-12)
+    fd = _fd_gradient(fm, q, v)
+    np.testing.assert_allclose(G, fd, rtol=1e-6, atol=1e-6)
+    assert G[0, 3] > 10.0 and G[1, 1] != 0.0 and G[2, 2] != 0.0   # tanh slope, gravity, expansion
+    # joint 1 goes the other way: the kc- branch of (9.3)
+    v2 = np.array([-0.02, -0.03, 0.1])
+    np.testing.assert_allclose(_ad_gradient(fm, q, v2)[1], _fd_gradient(fm, q, v2), rtol=1e-6, atol=1e-6)
+
+
+def test_autodiff_energy_model_and_plant_diagram():
+    """An energy model keeps its discrete state under AutoDiffXd; a plant + friction diagram converts."""
+    from pydrake.autodiffutils import AutoDiffXd
+    m = JointFriction.coulomb_viscous(2.0, 0.8, index=0)
+    m.energy = EnergyDynamics(gain=0.05, time_constant=0.5, h=0.01, E0=0.3)
+    fm = FrictionModel([m], sign_eps=0.1)
+    q, v = np.array([0.1]), np.array([0.05])
+    F, G = _ad_gradient(fm, q, v)
+    np.testing.assert_allclose(F, fm.friction(q, v, E=[0.3]), rtol=1e-12)
+    E = np.array([0.3])
+    fd = (fm.friction(q, v + 1e-6, E) - fm.friction(q, v - 1e-6, E)) / 2e-6
+    assert G[0, 1] == pytest.approx(fd[0], rel=1e-6)
+    # the ZOH energy update E <- a E + k_e (1 - a) |F v| runs on AutoDiffXd and matches the float one
+    E_next = []
+    for s, x in ((fm, [0.1, 0.5]), (fm.ToAutoDiffXd(), [AutoDiffXd(0.1), AutoDiffXd(0.5, [1.0])])):
+        c = s.CreateDefaultContext()
+        s.get_input_port(0).FixValue(c, np.array(x[:1], dtype=type(x[0])))
+        s.get_input_port(1).FixValue(c, np.array(x[1:], dtype=type(x[0])))
+        E_next.append(s.EvalUniquePeriodicDiscreteUpdate(c).get_vector(0).CopyToVector()[0])
+    assert E_next[1].value() == pytest.approx(E_next[0], rel=1e-12) and E_next[0] != pytest.approx(0.3)
+    assert E_next[1].derivatives()[0] > 0.0        # more speed, more friction power, more energy
+    builder = DiagramBuilder()
+    plant = _disk_plant(builder)
+    add_friction(builder, plant, FrictionModel.coulomb_viscous([0.4], [0.3], sign_eps=0.05))
+    ad = builder.Build().ToAutoDiffXd()
+    ctx = ad.CreateDefaultContext()
+    ctx.SetContinuousState([AutoDiffXd(0.0, [1.0, 0.0]), AutoDiffXd(0.2, [0.0, 1.0])])
+    xdot = ad.EvalTimeDerivatives(ctx).CopyToVector()
+    # d(wdot)/dw = -(kv + kc / eps * (1 - tanh^2(w / eps))) / I, I = 0.5
+    expect = -(0.3 + 0.4 / 0.05 * (1 - np.tanh(0.2 / 0.05) ** 2)) / 0.5
+    assert xdot[1].derivatives()[1] == pytest.approx(expect, rel=1e-9)

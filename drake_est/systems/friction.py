@@ -30,7 +30,9 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.autodiffutils import AutoDiffXd
+from pydrake.systems.framework import LeafSystem, LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
 
 from drake_est.errors import DataError, DrakeEstError
 from drake_est.identification.friction import JointFriction
@@ -38,6 +40,11 @@ from drake_est.joints import index_to_joint, joint_to_index
 
 
 PARAMS_FORMAT = "drake_est.friction_model/2"
+
+
+def _value(x) -> float:
+    """A float from a float or AutoDiffXd scalar (e.g. the Context's time)."""
+    return float(x.value()) if hasattr(x, "value") else float(x)
 
 
 def _as_models(models, n_joints):
@@ -75,164 +82,249 @@ def _as_models(models, n_joints):
     return fixed, n_joints
 
 
-class FrictionModel(LeafSystem):
-    """Joint friction torques F(q, dq[, E, t]) [N m] of ``n_joints`` joints (thesis Ch. 9).
+def _fd_columns(term, Q, DQ, j, E, sign_eps, t):
+    """Columns of ``term`` at AutoDiffXd inputs for terms without an object-array path (e.g. the
+    basis-function expansions of Sec. 6.3): values from the float columns, derivatives by the chain rule
+    with d(columns)/d(inputs) from central differences of the float columns (relative step 1e-6)."""
+    ins = [Q[0], DQ[0]] + ([np.asarray(E).ravel()] if E is not None else [])
+    vals = [np.array([_value(x) for x in a]) for a in ins]
+    grads = [[np.asarray(x.derivatives(), float) if hasattr(x, "derivatives") else np.zeros(0) for x in a]
+             for a in ins]
+    nd = max((g.size for gs in grads for g in gs), default=0)
 
-    Ports: inputs ``joint_positions`` (n,) [rad] and ``joint_velocities`` (n,) [rad/s]; output
-    ``friction_torques`` (n,) [N m].  Energy models keep E [N m] as discrete state in the Context.
+    def cols(vs):
+        Ef = vs[2] if E is not None else None
+        if term.needs_time:
+            return term.columns(vs[0][None], vs[1][None], j, Ef, sign_eps, t=t)[0]
+        return term.columns(vs[0][None], vs[1][None], j, Ef, sign_eps)[0]
 
-    Parameters
-    ----------
-    models : list (length n_joints, in joint order) of JointFriction / its dict / None (no friction),
-        or a dict {1-based joint number: model}, or a single model for a 1-joint system.
-    n_joints : number of joints (default: from ``models``).
-    sign_eps : smoothing velocity for sign(v) [rad/s]; 0 = exact sign.
-    energy_period : update period of the energy state [s] (default: the energy model's h).
-    """
-
-    def __init__(self, models, n_joints: int | None = None, sign_eps: float = 0.0,
-                 energy_period: float | None = None):
-        super().__init__()
-        self._models, n = _as_models(models, n_joints)
-        self._n = n
-        self._sign_eps = float(sign_eps)
-        self._positions = self.DeclareVectorInputPort("joint_positions", n)
-        self._velocities = self.DeclareVectorInputPort("joint_velocities", n)
-        self._torques = self.DeclareVectorOutputPort("friction_torques", n, self._calc_torques)
-        self._energy_joints = [j for j, m in enumerate(self._models) if m is not None and m.energy is not None]
-        self._E_index = None
-        if self._energy_joints:
-            hs = [self._models[j].energy.h for j in self._energy_joints]
-            period = float(energy_period) if energy_period is not None else float(min(hs))
-            if period <= 0:
-                raise DrakeEstError(f"energy update period must be positive, got {period}")
-            self._period = period
-            E0 = np.zeros(n)
-            for j in self._energy_joints:
-                E0[j] = self._models[j].energy.E0
-            self._E_index = self.DeclareDiscreteState(BasicVector(E0))
-            self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_energy)
-            # ZOH coefficients at the update period (which may differ from the identification h)
-            self._ab = {}
-            for j in self._energy_joints:
-                e = self._models[j].energy
-                a = float(np.exp(-period / e.time_constant))
-                self._ab[j] = (a, e.gain * (1.0 - a))
-
-    # ------------------------------------------------------------------ helpers
-    @property
-    def n_joints(self) -> int:
-        return self._n
-
-    @property
-    def models(self) -> list:
-        return list(self._models)
-
-    def get_joint_positions_input_port(self):
-        return self._positions
-
-    def get_joint_velocities_input_port(self):
-        return self._velocities
-
-    def get_friction_torques_output_port(self):
-        return self._torques
-
-    def _E(self, context):
-        if self._E_index is None:
-            return np.zeros(self._n)
-        return context.get_discrete_state(self._E_index).CopyToVector()
-
-    def friction(self, q, v, E=None, t: float = 0.0) -> np.ndarray:
-        """F(q, v, E, t) for one configuration (n,) -- the same numbers as the output port
-        (``t`` [s]: time, read by time-dependent terms such as a diagnosed abrupt change)."""
-        q = np.asarray(q, float).reshape(1, -1)
-        v = np.asarray(v, float).reshape(1, -1)
-        if q.shape[1] != self._n or v.shape[1] != self._n:
-            raise DataError(f"expected {self._n} joint positions/velocities, got {q.shape[1]}/{v.shape[1]}")
-        E = np.zeros(self._n) if E is None else np.asarray(E, float)
-        F = np.zeros(self._n)
-        for j, m in enumerate(self._models):
-            if m is None:
+    c0 = np.asarray(cols(vals), float)
+    D = np.zeros((c0.size, nd))
+    for a, (va, ga) in enumerate(zip(vals, grads)):
+        for i, g in enumerate(ga):
+            if g.size == 0 or not np.any(g):
                 continue
-            Ej = np.array([E[j]]) if m.needs_energy else None
-            tj = np.array([t]) if m.needs_time else None
-            F[j] = float(m.predict(q, v, Ej, sign_eps=self._sign_eps, t=tj)[0])
-        return F
+            h = 1e-6 * (1.0 + abs(va[i]))
+            up = [x.copy() for x in vals]
+            dn = [x.copy() for x in vals]
+            up[a][i] += h
+            dn[a][i] -= h
+            D += np.outer((np.asarray(cols(up), float) - np.asarray(cols(dn), float)) / (2 * h), g)
+    return np.array([[AutoDiffXd(c0[k], D[k]) for k in range(c0.size)]], dtype=object)
 
-    # ------------------------------------------------------------------ callbacks
-    def _qv(self, context):
-        return self._positions.Eval(context), self._velocities.Eval(context)
 
-    def _calc_torques(self, context, output):
-        q, v = self._qv(context)
-        output.SetFromVector(self.friction(q, v, self._E(context), context.get_time()))
-
-    def _update_energy(self, context, discrete_state):
-        q, v = self._qv(context)
-        E = self._E(context)
-        F = self.friction(q, v, E, context.get_time())
-        Enew = E.copy()
-        for j in self._energy_joints:
-            a, b = self._ab[j]
-            Enew[j] = a * E[j] + b * abs(F[j] * v[j])   # E <- a E + k_e (1 - a) W,  W = |F v|  (9.21), (9.24)
-        discrete_state.get_mutable_vector(self._E_index).SetFromVector(Enew)
-
-    # ------------------------------------------------------------------ constructors
-    @classmethod
-    def coulomb_viscous(cls, kc, kv, kc_minus=None, sign_eps: float = 0.0) -> "FrictionModel":
-        """Plain Coulomb + viscous friction (9.2) per joint, or direction-dependent
-        Coulomb (9.3) when ``kc_minus`` is given (``kc`` is then kc+). Arrays of length n [N m], [N m s/rad]."""
-        kc = np.atleast_1d(np.asarray(kc, float))
-        kv = np.atleast_1d(np.asarray(kv, float))
-        if kc.shape != kv.shape:
-            raise DrakeEstError(f"kc has {kc.size} entries, kv has {kv.size}")
-        km = None if kc_minus is None else np.atleast_1d(np.asarray(kc_minus, float))
-        if km is not None and km.shape != kc.shape:
-            raise DrakeEstError(f"kc_minus has {km.size} entries, kc has {kc.size}")
-        models = [JointFriction.coulomb_viscous(kc[j], kv[j], index=j, kc_minus=None if km is None else km[j])
-                  for j in range(kc.size)]
-        return cls(models, sign_eps=sign_eps)
-
-    def to_params(self) -> dict:
-        """The models as a JSON-able ``params.json`` dict: ``{"format": "drake_est.friction_model/2",
-        "n_joints": n, "models": {"<1-based joint number>": model dict}}`` (:meth:`from_json` reads it)."""
-        return {"format": PARAMS_FORMAT, "n_joints": self._n,
-                "models": {str(index_to_joint(i)): m.to_dict() for i, m in enumerate(self._models) if m is not None}}
-
-    @classmethod
-    def from_params(cls, d: dict, n_joints: int | None = None, sign_eps: float = 0.0, source: str = "params") -> "FrictionModel":
-        """Build from a params dict: :meth:`to_params`'s format, ``drake-est fit-friction``'s ``params.json``
-        (``{"model": ...}``, placed at its 1-based joint number), or a single model dict.
-
-        Files written before issue #18 keyed ``models`` by 0-based index (no ``format``): they are
-        still read, as 0-based indices, with a ``DeprecationWarning`` (re-save with :meth:`to_params`)."""
-        if "models" in d:
-            if d.get("format") == PARAMS_FORMAT:
-                models = {int(k): v for k, v in d["models"].items()}
-                n_joints = n_joints if n_joints is not None else d.get("n_joints")
-            else:
-                warnings.warn(f"{source}: friction models keyed by 0-based index (written before drake_est "
-                              f"issue #18); read as indices 0.. -- re-save with FrictionModel.to_params() to get "
-                              f"1-based joint keys", DeprecationWarning, stacklevel=3)
-                models = {int(k) + 1: v for k, v in d["models"].items()}
-        else:
-            m = d["model"] if "model" in d else d
-            models = {JointFriction.from_dict(m).joint_number_or_index(): m}
-        return cls(models, n_joints=n_joints, sign_eps=sign_eps)
-
-    @classmethod
-    def from_json(cls, path, n_joints: int | None = None, sign_eps: float = 0.0) -> "FrictionModel":
-        """Load models written by ``drake-est fit-friction`` or :meth:`to_params` (see :meth:`from_params`)."""
+def _object_friction(model, q, v, E, t: float, sign_eps: float):
+    """F of one joint for AutoDiffXd (n,) object arrays ``q``, ``v``, ``E``: the same regressor columns as
+    :meth:`JointFriction.predict` times the fitted coefficients.  Each term's ``columns`` runs on the object
+    arrays (exact derivatives through Coulomb (9.1), viscous (9.2), direction-dependent (9.3), gravity,
+    gear-coupled (9.12) terms); terms without an object-array path (basis-function expansions) get
+    derivatives from central differences (:func:`_fd_columns`). Use ``sign_eps > 0``: sign(v) has no
+    useful derivative."""
+    Q, DQ = q.reshape(1, -1), v.reshape(1, -1)
+    Ej = None if E is None else E[model.index:model.index + 1]
+    tj = np.array([t])
+    blocks = []
+    for tm in model.terms:
         try:
-            d = json.loads(Path(path).read_text())
-        except (OSError, ValueError) as e:
-            raise DataError(f"cannot read friction params {path}: {e}") from None
-        return cls.from_params(d, n_joints=n_joints, sign_eps=sign_eps, source=str(path))
+            c = (tm.columns(Q, DQ, model.index, Ej, sign_eps, t=tj) if tm.needs_time
+                 else tm.columns(Q, DQ, model.index, Ej, sign_eps))
+        except (TypeError, ValueError, AttributeError):
+            c = _fd_columns(tm, Q, DQ, model.index, Ej, sign_eps, tj)
+        blocks.append(np.asarray(c, dtype=object).reshape(1, -1))
+    F = (np.hstack(blocks) @ np.asarray(model.coef, float))[0]
+    if model.energy is not None and model.energy_additive:
+        vj = v[model.index]
+        F = F + (np.tanh(vj / sign_eps) if sign_eps > 0 else np.sign(vj)) * E[model.index]
+    if model.torque_limit is not None:
+        lim = float(model.torque_limit)
+        F = min(max(F, -lim), lim)
+    return F
 
-    def write_json(self, path) -> Path:
-        """Write :meth:`to_params` as ``params.json`` (no NaN/Inf)."""
-        from drake_est.jsonutil import dump_json
-        return dump_json(self.to_params(), path)
+
+@TemplateSystem.define("FrictionModel_", T_list=(float, AutoDiffXd))
+def FrictionModel_(T):
+
+    class Impl(LeafSystem_[T]):
+        """Joint friction torques F(q, dq[, E, t]) [N m] of ``n_joints`` joints (thesis Ch. 9).
+
+        Ports: inputs ``joint_positions`` (n,) [rad] and ``joint_velocities`` (n,) [rad/s]; output
+        ``friction_torques`` (n,) [N m].  Energy models keep E [N m] as discrete state in the Context.
+        Scalar types float and AutoDiffXd (``ToAutoDiffXd()``), so a plant with friction can be
+        differentiated (iLQR); use ``sign_eps > 0`` there.
+
+        Parameters
+        ----------
+        models : list (length n_joints, in joint order) of JointFriction / its dict / None (no friction),
+            or a dict {1-based joint number: model}, or a single model for a 1-joint system.
+        n_joints : number of joints (default: from ``models``).
+        sign_eps : smoothing velocity for sign(v) [rad/s]; 0 = exact sign.
+        energy_period : update period of the energy state [s] (default: the energy model's h).
+        """
+
+        def _construct(self, models, n_joints: int | None = None, sign_eps: float = 0.0,
+                       energy_period: float | None = None, converter=None):
+            LeafSystem_[T].__init__(self, converter)
+            self._models, n = _as_models(models, n_joints)
+            self._n = n
+            self._sign_eps = float(sign_eps)
+            self._energy_period = energy_period
+            self._positions = self.DeclareVectorInputPort("joint_positions", n)
+            self._velocities = self.DeclareVectorInputPort("joint_velocities", n)
+            self._torques = self.DeclareVectorOutputPort("friction_torques", n, self._calc_torques)
+            self._energy_joints = [j for j, m in enumerate(self._models) if m is not None and m.energy is not None]
+            self._E_index = None
+            if self._energy_joints:
+                hs = [self._models[j].energy.h for j in self._energy_joints]
+                period = float(energy_period) if energy_period is not None else float(min(hs))
+                if period <= 0:
+                    raise DrakeEstError(f"energy update period must be positive, got {period}")
+                self._period = period
+                E0 = np.zeros(n)
+                for j in self._energy_joints:
+                    E0[j] = self._models[j].energy.E0
+                self._E_index = self.DeclareDiscreteState(E0)
+                self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_energy)
+                # ZOH coefficients at the update period (which may differ from the identification h)
+                self._ab = {}
+                for j in self._energy_joints:
+                    e = self._models[j].energy
+                    a = float(np.exp(-period / e.time_constant))
+                    self._ab[j] = (a, e.gain * (1.0 - a))
+
+        def _construct_copy(self, other, converter=None):
+            Impl._construct(self, other._models, other._n, other._sign_eps, other._energy_period,
+                            converter=converter)
+
+        # ------------------------------------------------------------------ helpers
+        @property
+        def n_joints(self) -> int:
+            return self._n
+
+        @property
+        def models(self) -> list:
+            return list(self._models)
+
+        def get_joint_positions_input_port(self):
+            return self._positions
+
+        def get_joint_velocities_input_port(self):
+            return self._velocities
+
+        def get_friction_torques_output_port(self):
+            return self._torques
+
+        def _E(self, context):
+            if self._E_index is None:
+                return np.zeros(self._n)
+            return context.get_discrete_state(self._E_index).CopyToVector()
+
+        def _friction_T(self, q, v, E, t):
+            """:meth:`friction` for the system's scalar type (float: exactly :meth:`friction`)."""
+            if T is float:
+                return self.friction(q, v, E, t)
+            F = np.array([T(0.0)] * self._n, dtype=object)
+            for j, m in enumerate(self._models):
+                if m is not None:
+                    F[j] = _object_friction(m, q, v, E if m.needs_energy else None, float(t), self._sign_eps)
+            return F
+
+        def friction(self, q, v, E=None, t: float = 0.0) -> np.ndarray:
+            """F(q, v, E, t) for one configuration (n,) -- the same numbers as the output port
+            (``t`` [s]: time, read by time-dependent terms such as a diagnosed abrupt change)."""
+            q = np.asarray(q, float).reshape(1, -1)
+            v = np.asarray(v, float).reshape(1, -1)
+            if q.shape[1] != self._n or v.shape[1] != self._n:
+                raise DataError(f"expected {self._n} joint positions/velocities, got {q.shape[1]}/{v.shape[1]}")
+            E = np.zeros(self._n) if E is None else np.asarray(E, float)
+            F = np.zeros(self._n)
+            for j, m in enumerate(self._models):
+                if m is None:
+                    continue
+                Ej = np.array([E[j]]) if m.needs_energy else None
+                tj = np.array([t]) if m.needs_time else None
+                F[j] = float(m.predict(q, v, Ej, sign_eps=self._sign_eps, t=tj)[0])
+            return F
+
+        # ------------------------------------------------------------------ callbacks
+        def _qv(self, context):
+            return self._positions.Eval(context), self._velocities.Eval(context)
+
+        def _calc_torques(self, context, output):
+            q, v = self._qv(context)
+            output.SetFromVector(self._friction_T(q, v, self._E(context), _value(context.get_time())))
+
+        def _update_energy(self, context, discrete_state):
+            q, v = self._qv(context)
+            E = self._E(context)
+            F = self._friction_T(q, v, E, _value(context.get_time()))
+            Enew = E.copy()
+            for j in self._energy_joints:
+                a, b = self._ab[j]
+                Enew[j] = a * E[j] + b * abs(F[j] * v[j])   # E <- a E + k_e (1 - a) W,  W = |F v|  (9.21), (9.24)
+            discrete_state.get_mutable_vector(self._E_index).SetFromVector(Enew)
+
+        # ------------------------------------------------------------------ constructors
+        @classmethod
+        def coulomb_viscous(cls, kc, kv, kc_minus=None, sign_eps: float = 0.0) -> "FrictionModel":
+            """Plain Coulomb + viscous friction (9.2) per joint, or direction-dependent
+            Coulomb (9.3) when ``kc_minus`` is given (``kc`` is then kc+). Arrays of length n [N m], [N m s/rad]."""
+            kc = np.atleast_1d(np.asarray(kc, float))
+            kv = np.atleast_1d(np.asarray(kv, float))
+            if kc.shape != kv.shape:
+                raise DrakeEstError(f"kc has {kc.size} entries, kv has {kv.size}")
+            km = None if kc_minus is None else np.atleast_1d(np.asarray(kc_minus, float))
+            if km is not None and km.shape != kc.shape:
+                raise DrakeEstError(f"kc_minus has {km.size} entries, kc has {kc.size}")
+            models = [JointFriction.coulomb_viscous(kc[j], kv[j], index=j, kc_minus=None if km is None else km[j])
+                      for j in range(kc.size)]
+            return cls(models, sign_eps=sign_eps)
+
+        def to_params(self) -> dict:
+            """The models as a JSON-able ``params.json`` dict: ``{"format": "drake_est.friction_model/2",
+            "n_joints": n, "models": {"<1-based joint number>": model dict}}`` (:meth:`from_json` reads it)."""
+            return {"format": PARAMS_FORMAT, "n_joints": self._n,
+                    "models": {str(index_to_joint(i)): m.to_dict() for i, m in enumerate(self._models) if m is not None}}
+
+        @classmethod
+        def from_params(cls, d: dict, n_joints: int | None = None, sign_eps: float = 0.0, source: str = "params") -> "FrictionModel":
+            """Build from a params dict: :meth:`to_params`'s format, ``drake-est fit-friction``'s ``params.json``
+            (``{"model": ...}``, placed at its 1-based joint number), or a single model dict.
+
+            Files written before issue #18 keyed ``models`` by 0-based index (no ``format``): they are
+            still read, as 0-based indices, with a ``DeprecationWarning`` (re-save with :meth:`to_params`)."""
+            if "models" in d:
+                if d.get("format") == PARAMS_FORMAT:
+                    models = {int(k): v for k, v in d["models"].items()}
+                    n_joints = n_joints if n_joints is not None else d.get("n_joints")
+                else:
+                    warnings.warn(f"{source}: friction models keyed by 0-based index (written before drake_est "
+                                  f"issue #18); read as indices 0.. -- re-save with FrictionModel.to_params() to get "
+                                  f"1-based joint keys", DeprecationWarning, stacklevel=3)
+                    models = {int(k) + 1: v for k, v in d["models"].items()}
+            else:
+                m = d["model"] if "model" in d else d
+                models = {JointFriction.from_dict(m).joint_number_or_index(): m}
+            return cls(models, n_joints=n_joints, sign_eps=sign_eps)
+
+        @classmethod
+        def from_json(cls, path, n_joints: int | None = None, sign_eps: float = 0.0) -> "FrictionModel":
+            """Load models written by ``drake-est fit-friction`` or :meth:`to_params` (see :meth:`from_params`)."""
+            try:
+                d = json.loads(Path(path).read_text())
+            except (OSError, ValueError) as e:
+                raise DataError(f"cannot read friction params {path}: {e}") from None
+            return cls.from_params(d, n_joints=n_joints, sign_eps=sign_eps, source=str(path))
+
+        def write_json(self, path) -> Path:
+            """Write :meth:`to_params` as ``params.json`` (no NaN/Inf)."""
+            from drake_est.jsonutil import dump_json
+            return dump_json(self.to_params(), path)
+
+
+    return Impl
+
+
+FrictionModel = FrictionModel_[None]
 
 
 class TrueJointFriction(LeafSystem):
