@@ -218,3 +218,51 @@ def test_autodiff_energy_model_and_plant_diagram():
     # d(wdot)/dw = -(kv + kc / eps * (1 - tanh^2(w / eps))) / I, I = 0.5
     expect = -(0.3 + 0.4 / 0.05 * (1 - np.tanh(0.2 / 0.05) ** 2)) / 0.5
     assert xdot[1].derivatives()[1] == pytest.approx(expect, rel=1e-9)
+
+
+def _truth_reference(tr, q, v, t, E):
+    """The synthetic truth written out by hand (Eqs. (9.1)-(9.3), (9.12), (9.13), (9.22), ripple)."""
+    F = np.zeros(len(tr.kc))
+    for j in range(len(tr.kc)):
+        s = np.tanh(v[j] / tr.v_eps)
+        kc, kv = (tr.kc_neg[j] if v[j] < 0 else tr.kc[j]), tr.kv[j]
+        if j in tr.change and t >= tr.change[j][0]:
+            kc = tr.change[j][1] * (tr.kc_neg[j] / tr.kc[j] if v[j] < 0 else 1.0)
+            kv = tr.change[j][2]
+        c, w, a = tr.bumps.get(j, ([], [], []))
+        level = kc + sum(ak * np.exp(-0.5 * ((q[j] - ck) / wk) ** 2) for ck, wk, ak in zip(c, w, a)) + E[j]
+        F[j] = kv * v[j] + s * level
+        if j in tr.ripple:
+            g, h, a0, vh, ph = tr.ripple[j]
+            F[j] += a0 / (1 + abs(v[j]) / vh) * np.sin(h * np.mod(g * q[j], 2 * np.pi) + ph)
+        for i, kci, kvi in tr.coupling.get(j, []):
+            F[j] += kvi * v[i] + kci * np.tanh(v[i] / tr.v_eps)
+    return F
+
+
+def test_friction_truth_is_evaluated_through_the_package_terms():
+    """FrictionTruth.torque (all effects at once) equals the hand-written truth; its per-joint
+    JointFriction holds the package's terms, and the two new term types round-trip through to_dict."""
+    from drake_est.identification.friction.terms import SpeedAttenuatedRipple, TimeSwitched, term_from_dict
+    from drake_est.identification.friction.truth import FrictionTruth
+    tr = FrictionTruth(kc=np.array([2.0, 1.0, 0.5]), kv=np.array([0.8, 0.3, 0.2]), kc_neg=np.array([1.5, 1.4, 0.6]),
+                       bumps={0: (np.array([0.2, -0.3]), np.array([0.3, 0.2]), np.array([0.5, -0.4]))},
+                       ripple={1: (50.0, 2, 0.4, 0.5, 0.3)}, energy={0: (-0.1, 5.0)},
+                       coupling={2: [(1, 0.2, 0.1)]}, change={0: (1.0, 2.6, 1.1), 1: (0.5, 0.7, 0.2)})
+    rng = np.random.default_rng(11)
+    for _ in range(30):
+        q, v = rng.uniform(-1, 1, 3), rng.uniform(-0.2, 0.2, 3)
+        t, E = rng.uniform(0, 2), np.array([rng.uniform(-0.3, 0.0), 0.0, 0.0])
+        np.testing.assert_allclose(tr.torque(q, v, t, E), _truth_reference(tr, q, v, t, E), rtol=1e-12, atol=1e-12)
+    kinds = [t.kind for t in tr.joint_model(1).terms]
+    assert kinds == ["time_switched"] * 4 + ["speed_attenuated_ripple"]
+    tr.active = np.array([True, False, True])
+    assert tr.joint_model(1) is None and tr.torque(np.zeros(3), np.ones(3), 0.0)[1] == 0.0
+    Q, V = rng.uniform(-1, 1, (5, 2)), rng.uniform(-1, 1, (5, 2))
+    for term in (SpeedAttenuatedRipple(50.0, 3, 0.4, 0.2), TimeSwitched(JointFriction.coulomb_viscous(1, 1).terms[0], 0.3)):
+        back = term_from_dict(term.to_dict())
+        kw = {"t": np.linspace(0, 1, 5)} if term.needs_time else {}
+        np.testing.assert_array_equal(back.columns(Q, V, 1, **kw), term.columns(Q, V, 1, **kw))
+        assert back.names() == term.names()
+    with pytest.raises(DrakeEstError, match="v_half"):
+        SpeedAttenuatedRipple(50.0, 1, 0.0)

@@ -248,6 +248,59 @@ class BFETerm(Term):
                         "period": list(self.bfe.period)}}
 
 
+class SpeedAttenuatedRipple(Term):
+    """Motor-position ripple whose amplitude falls with speed (the synthetic truth's ripple, Ch. 10):
+    one column sin(h mod(g q, 2 pi) + phase) / (1 + |v| / v_half), coefficient = amplitude at rest [N m].
+    ``gear_ratio`` g, ``harmonic`` h per motor revolution, ``v_half`` [rad/s], ``phase`` [rad]."""
+
+    kind = "speed_attenuated_ripple"
+
+    def __init__(self, gear_ratio: float, harmonic: float, v_half: float, phase: float = 0.0):
+        self.gear_ratio, self.harmonic = float(gear_ratio), float(harmonic)
+        self.v_half, self.phase = float(v_half), float(phase)
+        if not self.v_half > 0:
+            raise DrakeEstError(f"ripple v_half must be positive, got {v_half}")
+
+    def columns(self, Q, DQ, j, E=None, sign_eps=0.0):
+        q, v = Q[:, j], DQ[:, j]
+        wave = np.sin(self.harmonic * np.mod(self.gear_ratio * q, TWO_PI) + self.phase)
+        return (1.0 / (1.0 + np.abs(v) / self.v_half) * wave)[:, None]
+
+    def names(self):
+        return ["ripple_amplitude"]
+
+    def to_dict(self):
+        return {"kind": self.kind, "gear_ratio": self.gear_ratio, "harmonic": self.harmonic,
+                "v_half": self.v_half, "phase": self.phase}
+
+
+class TimeSwitched(Term):
+    """Another term's columns, active only after (``after=True``: t >= t_switch) or before
+    (t < t_switch) a switching time [s]: an abrupt change of friction (Ch. 7, (7.8)) as a term."""
+
+    kind = "time_switched"
+    needs_time = True
+
+    def __init__(self, term: Term, t_switch: float, after: bool = True):
+        self.term, self.t_switch, self.after = term, float(t_switch), bool(after)
+        self.needs_energy = term.needs_energy
+
+    def columns(self, Q, DQ, j, E=None, sign_eps=0.0, t=None):
+        if t is None:
+            raise DataError("a time-switched friction term needs the time t")
+        t = np.broadcast_to(np.asarray(t, float).ravel(), (Q.shape[0],))
+        on = (t >= self.t_switch) if self.after else (t < self.t_switch)
+        C = self.term.columns(Q, DQ, j, E, sign_eps)
+        return np.where(on[:, None], C, 0.0 * C)
+
+    def names(self):
+        tag = "after" if self.after else "before"
+        return [f"{n}_{tag}" for n in self.term.names()]
+
+    def to_dict(self):
+        return {"kind": self.kind, "term": self.term.to_dict(), "t_switch": self.t_switch, "after": self.after}
+
+
 def term_from_dict(d: dict) -> Term:
     kind = d.get("kind")
     simple = {c.kind: c for c in (Coulomb, Viscous, AsymmetricCoulomb, Offset, Gravity)}
@@ -255,6 +308,10 @@ def term_from_dict(d: dict) -> Term:
         return simple[kind]()
     if kind == "coupled_joint":
         return CoupledJoint(d["k"], d.get("motor_from_arm"), d.get("motor_side", False), d.get("label"))
+    if kind == SpeedAttenuatedRipple.kind:
+        return SpeedAttenuatedRipple(d["gear_ratio"], d["harmonic"], d["v_half"], d.get("phase", 0.0))
+    if kind == TimeSwitched.kind:
+        return TimeSwitched(term_from_dict(d["term"]), d["t_switch"], d.get("after", True))
     if kind == "bfe":
         b = d["bfe"]
         bfe = BasisFunctionExpansion(centers=[np.asarray(c) for c in b["centers"]], widths=b["widths"],
