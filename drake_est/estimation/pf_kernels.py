@@ -229,21 +229,6 @@ def _wcov(x, w, m, Pout):
             Pout[q, p] = Pout[p, q]
 
 
-def _moments(x, logw, w, m, mout, Pout, cov):
-    N = x.shape[0]
-    amax = -np.inf
-    for i in range(N):
-        if logw[i] > amax:
-            amax = logw[i]
-    s = 0.0
-    for i in range(N):
-        w[i] = np.exp(logw[i] - amax)
-        s += w[i]
-    for i in range(N):
-        w[i] /= s
-    _wmoments(x, w, m, mout, Pout, cov)
-
-
 def _wmoments(x, w, m, mout, Pout, cov):
     N, nx = x.shape
     for p in range(nx):
@@ -253,36 +238,8 @@ def _wmoments(x, w, m, mout, Pout, cov):
             m[p] += w[i] * x[i, p]
     for p in range(nx):
         mout[p] = m[p]
-    if not cov:
-        return
-    for p in range(nx):
-        for q in range(nx):
-            Pout[p, q] = 0.0
-    for i in range(N):
-        for p in range(nx):
-            dp = w[i] * (x[i, p] - m[p])
-            for q in range(p + 1):
-                Pout[p, q] += dp * (x[i, q] - m[q])
-    for p in range(nx):
-        for q in range(p):
-            Pout[q, p] = Pout[p, q]
-
-
-def _systematic(x, w, u0, c, xn):
-    """x <- x[idx] with the indices of pf.systematic_resample (searchsorted 'left' on the cumsum)."""
-    N, nx = x.shape
-    s = 0.0
-    for i in range(N):
-        s += w[i]
-        c[i] = s
-    i = 0
-    for j in range(N):
-        pos = (u0 + j) / N
-        while i < N - 1 and c[i] < pos:
-            i += 1
-        for p in range(nx):
-            xn[j, p] = x[i, p]
-    x[:, :] = xn
+    if cov:
+        _wcov(x, w, m, Pout)
 
 
 def weight_step(x, logw, yh, y, inv_sd, thr, u0, cov, mout, Pout, xbuf, w, a, kbuf):
@@ -403,8 +360,6 @@ if HAVE_NUMBA:
     weight_step = numba.njit(cache=True)(weight_step)
     moments = numba.njit(cache=True)(moments)
     propagate = numba.njit(cache=True)(propagate)
-    _moments = numba.njit(cache=True)(_moments)
-    _systematic = numba.njit(cache=True)(_systematic)
     _chunk_loop_jit = numba.njit(_chunk_loop)
 
 
