@@ -212,7 +212,13 @@ def test_cli_errors_are_one_line(tmp_path):
     os.chmod(ro, stat.S_IRUSR)
     (tmp_path / "f" / "robot_001").mkdir(parents=True)
     (tmp_path / "f" / "robot_001" / "2026-05-01.csv").write_text("t,q1,tau1\n")
+    before = (ro.read_bytes(), ro.stat().st_mtime_ns, sorted(os.listdir(tmp_path)))
     p = _cli("fleet", "diagnose", str(tmp_path / "f"), "--store", str(ro))
     assert p.returncode == 2 and "read-only" in p.stderr and "Traceback" not in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and p.stdout == ""
+    # nothing written: same bytes, same mtime, no journal/WAL side files, no run recorded
+    assert (ro.read_bytes(), ro.stat().st_mtime_ns, sorted(os.listdir(tmp_path))) == before
+    with FleetStore(ro, write=False) as st:
+        assert st.query("SELECT COUNT(*) FROM runs")[0][0] == 0 and st.counts()["logs"] == 0
     p = _cli("synth-fleet", "--robots", "2", "--days", "10", "--out", str(tmp_path / "sf"))
     assert p.returncode == 2 and "--robots" in p.stderr

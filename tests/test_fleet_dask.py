@@ -17,7 +17,8 @@ import pytest
 
 pytest.importorskip("distributed")
 
-from drake_est.fleet import FleetStore, build_report, check_against_truth, fleet_trends, mc_map, run_fleet, synth_fleet  # noqa: E402
+from drake_est.fleet import (FleetStore, build_report, check_against_truth, discover, fleet_trends, mc_map,  # noqa: E402
+                              run_fleet, synth_fleet)
 from drake_est.fleet.run import local_cluster  # noqa: E402
 
 BROWSER = Path(__file__).resolve().parents[2] / "shared" / "browser" / "shot"
@@ -161,3 +162,69 @@ def test_mc_map_same_results_for_any_worker_count(client):
     inline = mc_map(_trial, ps, seed=7, workers=0)
     assert mc_map(_trial, ps, seed=7, client=client) == inline
     assert mc_map(_trial, ps, seed=7, workers=1) == inline
+
+
+def _variant(src, dst, change):
+    """Copy of the NPZ log ``src`` with its time column changed by ``change(t)``."""
+    with np.load(src) as z:
+        d = {k: z[k] for k in z.files}
+    d["t"] = change(d["t"].copy())
+    np.savez_compressed(dst, **d)
+    return dst
+
+
+def _swap(t):
+    t[100], t[101] = t[101], t[100]
+    return t
+
+
+def _gap(t):
+    t[300:] += 3600.0
+    return t
+
+
+def test_bad_logs_fail_one_by_one_and_the_run_goes_on(generic_fleet, tmp_path):
+    """Through `drake-est fleet diagnose` on a manifest: an unknown robot model, a non-monotonic time
+    column, an hour-long gap, a missing file and an unreadable log time are each recorded as failed with
+    their one-line reason, the good logs are diagnosed, and a rerun submits nothing."""
+    out, s = generic_fleet
+    truth = json.loads(Path(s["truth"]).read_text())
+    bad = {(c["robot"], c["day"]) for c in truth["corrupt"]}
+    good = [e for e in discover(out) if (e["robot_id"], int(e["time"][-2:]) - 1) not in bad][:2]
+    src = good[0]["path"]
+    rows = [("robot_a", "2026-05-01", good[0]["path"], "generic", "ok", None),
+            ("robot_a", "2026-05-02", good[1]["path"], "generic", "ok", None),
+            ("robot_b", "2026-05-01", src, "kuka_kr16", "failed", "unknown robot model 'kuka_kr16'"),
+            ("robot_c", "2026-05-01", str(_variant(src, tmp_path / "swap.npz", _swap)), "generic", "failed",
+             "time stamps not increasing"),
+            ("robot_c", "2026-05-02", str(_variant(src, tmp_path / "gap.npz", _gap)), "generic", "failed",
+             "gap of 3.6e+03 s"),
+            ("robot_c", "2026-05-03", str(tmp_path / "gone.npz"), "generic", "failed", "cannot read"),
+            ("robot_c", "yesterday", src, "generic", "failed", "not an ISO date")]
+    man = tmp_path / "manifest.csv"
+    man.write_text("robot_id,time,path,joints,robot_model\n"
+                   + "".join(f"{r},{t},{p},1,{m}\n" for r, t, p, m, _, _ in rows))
+    db = tmp_path / "faults.db"
+    env = dict(os.environ, DRAKE_EST_NO_PROGRESS="1")
+    p = subprocess.run([sys.executable, "-m", "drake_est", "fleet", "diagnose", str(man), "--store", str(db),
+                        "--workers", "1"], env=env, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "2 diagnosed, 5 failed" in p.stdout and "0 unfinished" in p.stdout, p.stdout
+    con = sqlite3.connect(db)
+    try:
+        got = {(r, t): (st, err) for r, t, st, err in
+               con.execute("SELECT robot_id, log_time, status, error FROM logs").fetchall()}
+        n_params = con.execute("SELECT COUNT(*) FROM parameters").fetchone()[0]
+    finally:
+        con.close()
+    assert len(got) == len(rows) and n_params > 0
+    for r, t, _, _, status, reason in rows:
+        st, err = got[(r, t)]
+        assert st == status, (r, t, err)
+        if reason is None:
+            assert err is None
+        else:
+            assert reason in err and "\n" not in err and "Traceback" not in err, (r, t, err)
+    before = _rows(db)
+    c = run_fleet(man, db, show_progress=False)        # nothing left to do: no cluster is even started
+    assert c["skipped"] == len(rows) and c["submitted"] == 0 and _rows(db) == before

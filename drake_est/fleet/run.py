@@ -292,7 +292,8 @@ def run_fleet(source, store, scheduler: str | None = None, workers: int | None =
                 sha = file_sha256(e["path"])
             except OSError:
                 sha = None
-            if sha is not None and (e["robot_id"], e["time"], sha) in done:
+            # a file still missing that the store already holds as failed ("missing") is not retried either
+            if (e["robot_id"], e["time"], sha or "missing") in done:
                 skipped += 1
                 continue
             shas[len(todo)] = sha
