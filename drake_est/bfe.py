@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from drake_est.errors import DrakeEstError, IdentifiabilityError
+from drake_est.errors import DataError, DrakeEstError, IdentifiabilityError
 
 KERNELS = ("gaussian", "triangular", "rectangular")
 
@@ -133,13 +133,27 @@ class BasisFunctionExpansion:
     @classmethod
     def from_data(cls, X, n, width_factor: float = 1.0, kernel="gaussian", normalize=True, period=None,
                   quantile: float = 0.0):
-        """Grid spanning the data range of ``X`` (optionally trimmed by ``quantile``)."""
+        """Grid spanning the data range of ``X`` (optionally trimmed by ``quantile``).
+
+        Refuses (``DataError``) non-finite inputs and a non-periodic input whose values are all equal while
+        more than one kernel is asked for: every kernel would sit at the same place (identical columns)."""
         X = _as_2d(X)
+        if X.shape[0] == 0:
+            raise DataError("X is empty; from_data needs samples to span")
+        if not np.all(np.isfinite(X)):
+            raise DataError(f"X contains NaN/inf ({int(np.sum(~np.isfinite(X)))} entries)")
+        n_arr = np.broadcast_to(np.atleast_1d(np.asarray(n)), (X.shape[1],))
+        if np.any(n_arr < 1):
+            raise DataError(f"n must be >= 1 kernel per input, got {n}")
         if quantile > 0:
             lo, hi = np.quantile(X, quantile, axis=0), np.quantile(X, 1 - quantile, axis=0)
         else:
             lo, hi = X.min(axis=0), X.max(axis=0)
         per = period if isinstance(period, (list, tuple)) else [period] * X.shape[1]
+        for i in range(X.shape[1]):
+            if per[i] is None and n_arr[i] > 1 and not hi[i] > lo[i]:
+                raise DataError(f"X column {i}: all values equal {float(lo[i]):.6g} (within quantile {quantile:g}); "
+                                f"{int(n_arr[i])} kernels over it would be identical, the data do not span the input")
         lo = np.array([0.0 if p is not None else l for l, p in zip(lo, per)])
         hi = np.array([p if p is not None else h for h, p in zip(hi, per)])
         return cls.uniform(lo, hi, n, width_factor=width_factor, kernel=kernel, normalize=normalize, period=per)

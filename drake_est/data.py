@@ -520,6 +520,30 @@ def _check_column(a, name, limit, source):
                         "wrong units or a damaged column")
 
 
+def degrees_warnings(log: Log, limits=None, prismatic=()) -> list:
+    """One-line warnings for joints whose positions look like degrees although no limits can tell.
+
+    Joints with ``limits`` are judged by :func:`load_log` (refused when far outside them).  For the
+    others (a generic axis, a continuous URDF joint) the only evidence is the numbers: a revolute joint
+    (not in ``prismatic``, log not marked ``axis_type: prismatic``) that spans more than one revolution
+    (2 pi) while staying within +-400 -- one revolution either way in degrees -- is most likely in degrees.
+    A multi-turn axis in rad can look the same, so this warns instead of refusing."""
+    if str(log.meta.get("axis_type", "")).lower() in ("prismatic", "linear"):
+        return []
+    limits = limits or {}
+    out = []
+    for c, j in enumerate(log.joints):
+        if j in limits or j in prismatic:
+            continue
+        q = log.q[:, c]
+        span, peak = float(np.ptp(q)), float(np.max(np.abs(q)))
+        if span > 2 * np.pi and peak <= 400.0:
+            out.append(f"joint {j} positions span {span:.4g} (q{j} in [{q.min():.4g}, {q.max():.4g}]): more than "
+                       f"a revolution in rad but within +-400; if they are in degrees, convert them to radians "
+                       f"(the format wants rad)")
+    return out
+
+
 def save_log(log: Log, path) -> Path:
     """Write a log as CSV (``.csv``) or NPZ (``.npz``) in the format read by :func:`load_log`."""
     path = Path(path)

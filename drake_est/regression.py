@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from drake_est.errors import DrakeEstError, IdentifiabilityError
+from drake_est.errors import DataError, DrakeEstError, IdentifiabilityError
 
 REL_JITTER = 1e-10
 
@@ -48,6 +48,17 @@ class RidgeFit:
 
     def predict(self, A) -> np.ndarray:
         return np.asarray(A) @ self.coef
+
+
+def check_lam(lam, name: str = "lam", positive: bool = False) -> float:
+    """The ridge penalty as a float: finite and >= 0 (> 0 with ``positive``); else ``DataError`` naming it."""
+    try:
+        v = float(lam)
+    except (TypeError, ValueError):
+        raise DataError(f"{name} must be a number >= 0, got {lam!r}") from None
+    if not np.isfinite(v) or v < 0 or (positive and v == 0):
+        raise DataError(f"{name} must be a finite number {'>' if positive else '>='} 0, got {lam!r}")
+    return v
 
 
 def penalty_weights(p: int, penalize) -> np.ndarray:
@@ -98,7 +109,7 @@ def ridge_solve(A, y, lam: float = 0.0, penalize=None, column_scaled: bool = Fal
     :func:`ridge_fit` without the degrees of freedom; ``column_scaled`` see the module docstring."""
     A = np.asarray(A, dtype=float)
     y = np.asarray(y, dtype=float)
-    if lam <= 0:
+    if check_lam(lam) == 0:
         return np.linalg.lstsq(A, y, rcond=None)[0]
     w = _weights(A, lam, penalize, column_scaled)
     idx = np.flatnonzero(w)
@@ -123,6 +134,7 @@ def ridge_fit(A, y, lam: float = 0.0, penalize=None, check: bool = False, names=
         raise DrakeEstError(f"ridge: A has shape {A.shape} but y has {y.shape[0]} rows")
     if not np.all(np.isfinite(A)) or not np.all(np.isfinite(y)):
         raise DrakeEstError("ridge: regressors or targets contain NaN/inf")
+    lam = check_lam(lam)
     p = A.shape[1]
     if check and lam == 0:
         check_excitation(A, names)
@@ -153,6 +165,7 @@ def ridge_gram_solve(G, b, lam: float, penalize=None, rel_jitter: float = REL_JI
     """Solve (G + lam D + j I) k = b, D = diag(penalize), by Cholesky (Eq. (6.8) normal equations).
 
     ``G = A^T A``, ``b = A^T y``; j is the jitter rule of the module docstring."""
+    lam = check_lam(lam)
     pen = penalty_weights(G.shape[0], penalize)
     H = _jittered(G, lam * pen, rel_jitter)
     return scipy.linalg.cho_solve(scipy.linalg.cho_factor(H, lower=True, check_finite=False), b,
@@ -161,6 +174,7 @@ def ridge_gram_solve(G, b, lam: float, penalize=None, rel_jitter: float = REL_JI
 
 def ridge_gram_dof(G, lam: float, penalize=None, rel_jitter: float = REL_JITTER) -> float:
     """Effective degrees of freedom trace((G + lam D + j I)^-1 G) of the Cholesky ridge (no inverse formed)."""
+    lam = check_lam(lam)
     pen = penalty_weights(G.shape[0], penalize)
     H = _jittered(G, lam * pen, rel_jitter)
     return float(np.trace(scipy.linalg.cho_solve(scipy.linalg.cho_factor(H), G)))
@@ -187,6 +201,7 @@ def ridge_cv(A, y, lams, penalize=None, folds: int = 5, scale_columns: bool = Fa
     A = np.asarray(A, float)
     y = np.asarray(y, float).ravel()
     n, p = A.shape
+    lams = [check_lam(v, "lams") for v in np.atleast_1d(lams)]
     pen = penalty_weights(p, penalize)
     if scale_columns:
         scale = np.linalg.norm(A, axis=0)
@@ -226,6 +241,7 @@ def log_evidence(A, y, lam: float, noise_var: float | None = None) -> float:
     and noise variance s2 (profiled out when None). Used for evidence maximization."""
     A = np.asarray(A, dtype=float)
     y = np.asarray(y, dtype=float).ravel()
+    lam = check_lam(lam, positive=True)
     n, p = A.shape
     u, s, vt = np.linalg.svd(A, full_matrices=False)
     uty = u.T @ y
@@ -247,7 +263,9 @@ def select_ridge(A, y, lams=None, penalize=None, method: str = "cv", folds: int 
     log evidence (higher is better)."""
     if lams is None:
         lams = np.logspace(-6, 3, 19)
-    lams = np.asarray(lams, dtype=float)
+    lams = np.array([check_lam(v, "lams") for v in np.atleast_1d(lams)])
+    if lams.size == 0:
+        raise DataError("lams is empty; give at least one ridge penalty")
     if method == "cv":
         scores = np.array([cv_error(A, y, l, penalize, folds, contiguous, seed) for l in lams])
         best = lams[int(np.argmin(scores))]

@@ -99,7 +99,8 @@ def add_robot(builder: DiagramBuilder, urdf, time_step: float = 0.0, base_link: 
     (model,) = parser.AddModels(str(urdf))
     if base_link is None:
         base_link = _root_link(plant, model)
-    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base_link, model))
+    if base_link is not None:    # None: the model is already attached to the world by its own joint
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base_link, model))
     if payload is not None:
         _add_payload(plant, model, flange_frame or "tool0", payload[0], payload[1])
     if rotor is not None:
@@ -117,6 +118,9 @@ def _root_link(plant, model) -> str:
     bodies = plant.GetBodyIndices(model)
     children = {plant.get_joint(j).child_body().index() for j in plant.GetJointIndices(model)}
     roots = [plant.get_body(b).name() for b in bodies if b not in children]
+    if not roots and any(plant.get_joint(j).parent_body().index() == plant.world_body().index()
+                         for j in plant.GetJointIndices(model)):
+        return None
     if len(roots) != 1:
         raise DataError(f"cannot find a unique root link in the URDF (candidates: {roots})")
     return roots[0]
@@ -236,6 +240,51 @@ class RobotModel:
         """Flange poses as (N, 4, 4) homogeneous matrices."""
         Q = np.atleast_2d(np.asarray(Q, float))
         return np.stack([self.forward_kinematics(q).GetAsMatrix4() for q in Q])
+
+
+def load_urdf_model(path) -> "RobotModel":
+    """A :class:`RobotModel` of a user-supplied URDF; any parse/model error becomes one ``DataError`` line
+    naming the file (a damaged model file is user input)."""
+    path = Path(str(path))
+    if path.suffix.lower() not in (".urdf", ".sdf", ".xml"):
+        raise DataError(f"--robot must be 'irb140', 'generic' or an existing .urdf file, got '{path}'")
+    if not path.is_file():
+        raise DataError(f"robot model not found: {path}")
+    try:
+        return RobotModel(path)
+    except DataError:
+        raise
+    except Exception as err:  # noqa: BLE001 - Drake's parser raises RuntimeError/ValueError with long texts
+        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+        raise DataError(f"cannot load robot model {path}: {first[:200]}") from None
+
+
+def robot_position_limits(robot) -> tuple[dict, set]:
+    """Position limits of the robot a command names, used to refuse positions in wrong units (degrees).
+
+    ``robot``: ``"irb140"`` (its URDF limits), ``None``/``"generic"``/``"none"``/``"auto"`` (no model: no
+    limits) or a URDF path (the finite limits of its one-degree-of-freedom joints; joint ``j`` is the
+    plant's position ``j - 1``).  Returns ``(limits, prismatic)``: ``{joint: (lo, hi)}`` [rad or m] and
+    the set of prismatic joints (positions in m, never judged as degrees)."""
+    name = None if robot is None else str(robot)
+    if name is None or name.lower() in ("generic", "none", "auto", ""):
+        return {}, set()
+    if name.lower() == "irb140":
+        return irb140_metadata().limits_dict(), set()
+    model = load_urdf_model(name)
+    limits, prismatic = {}, set()
+    plant = model.plant
+    for ji in plant.GetJointIndices(model.model):
+        joint = plant.get_joint(ji)
+        if joint.num_positions() != 1:
+            continue
+        j = joint.position_start() + 1
+        if "prismatic" in joint.type_name().lower():
+            prismatic.add(j)
+        lo, hi = float(joint.position_lower_limits()[0]), float(joint.position_upper_limits()[0])
+        if np.isfinite(lo) and np.isfinite(hi) and hi > lo:
+            limits[j] = (lo, hi)
+    return limits, prismatic
 
 
 @functools.lru_cache(maxsize=None)

@@ -62,6 +62,33 @@ def _laser_npz(tmp, **extra):
     return tmp / "laser.npz"
 
 
+def _api_case(case):
+    """A callable for an API row of the table (class 10): it must raise the project's error."""
+    from drake_est.bfe import BasisFunctionExpansion
+    from drake_est.calibration import calibrate_ft
+    from drake_est.estimation.kalman import KalmanFilter
+    from drake_est.identification import ltv
+    from drake_est.regression import ridge_fit
+
+    A, C, Q, R, x0, P0 = np.eye(2), np.eye(1, 2), np.eye(2), np.eye(1), np.zeros(2), np.eye(2)
+    rng = np.random.default_rng(0)
+    X, y = rng.standard_normal((30, 3)), rng.standard_normal(30)
+    return {
+        "api_kalman_not_pd": lambda: KalmanFilter(A, C, -Q, R, x0, P0),
+        "api_kalman_nan_A": lambda: KalmanFilter(A * np.nan, C, Q, R, x0, P0),
+        "api_kalman_shape": lambda: KalmanFilter(np.eye(3), C, Q, R, x0, P0),
+        "api_kalman_short_tv_A": lambda: KalmanFilter(np.stack([A] * 10), C, Q, R, x0, P0).smooth(
+            None, np.zeros((50, 1))),
+        "api_tv_lambda_T2": lambda: ltv.tv_select_lambda_ml(rng.standard_normal((2, 2)), rng.standard_normal(2)),
+        "api_ltv_lambda_T2": lambda: ltv.ltv_select_lambda_ml(rng.standard_normal((3, 2)),
+                                                              rng.standard_normal((2, 1))),
+        "api_ft_0_poses": lambda: calibrate_ft(np.zeros((0, 4, 4)), np.zeros((0, 6))),
+        "api_bfe_all_equal": lambda: BasisFunctionExpansion.from_data(np.full(100, 0.3), 10),
+        "api_ridge_negative_lam": lambda: ridge_fit(X, y, lam=-1.0),
+        "api_ridge_nan_lam": lambda: ridge_fit(X, y, lam=float("nan")),
+    }[case]
+
+
 def _build(case, tmp):
     """argv (or a callable raising) for one row of the table."""
     c = _log_cols()
@@ -117,6 +144,8 @@ def _build(case, tmp):
         from drake_est.data import load_log
 
         return lambda: load_log(_csv(f, c), window_s=float("nan"))
+    if case.startswith("api_"):
+        return _api_case(case)
     out = ["--out", str(tmp / "out")]
     if case == "ft_wrench_1d":
         return ["calibrate", "ft", str(_ft_npz(tmp, wrench_1d=True))] + out
@@ -273,3 +302,83 @@ def test_api_validation_names_the_argument():
         ltv.tv_select_lambda_ml(rng.standard_normal((2, 2)), rng.standard_normal(2))
     with pytest.raises(DataError, match="lams"):
         ltv.tv_select_lambda_ml(rng.standard_normal((50, 2)), rng.standard_normal(50), lams=[1.0, np.nan])
+
+
+# -- class 6: positions in degrees, with every robot option of every command that reads a log ---------------
+
+def _deg_log(tmp, two_joints=False):
+    t = np.arange(1000) * 0.01
+    q = np.degrees(1.2 * np.sin(2 * np.pi * 0.3 * t))          # +-69 "rad": degrees
+    tau = 2.0 * np.cos(2 * np.pi * 0.3 * t) + 0.3 * np.sign(np.cos(2 * np.pi * 0.3 * t))
+    cols = {"t": t, "q1": q, "tau1": tau}
+    if two_joints:   # the cart-pole: q1 the cart [m] (limits +-1000 m), q2 the continuous hinge
+        cols = {"t": t, "q1": 0.1 * np.sin(t), "q2": q, "tau1": 0.1 * tau, "tau2": tau}
+    return str(_csv(tmp / "deg.csv", cols))
+
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+DEG_REFUSED = [(cmd, robot) for robot in ("irb140", str(MODELS / "irb140.urdf"))
+               for cmd in ("check", "diagnose", "spectrum")] + [("fit-friction", "irb140")]
+
+
+def _deg_argv(cmd, robot, log, tmp):
+    out = ["--out", str(tmp / "o")]
+    if cmd == "check":
+        return ["check", log, "--robot", robot]
+    if cmd == "diagnose":
+        return ["diagnose", log, "--robot", robot, "--no-simulation"] + out
+    if cmd == "spectrum":
+        return ["spectrum", log, "--signal", "tau1", "--position", "q1", "--robot", robot] + out
+    return ["fit-friction", log, "--robot", robot, "--no-plots"] + out
+
+
+@pytest.mark.parametrize("cmd,robot", DEG_REFUSED)
+def test_degrees_refused_with_robot_limits(cmd, robot, tmp_path, capsys):
+    """A robot with joint limits (irb140 or a URDF): positions in degrees are refused, exit 2, one line."""
+    assert main(_deg_argv(cmd, robot, _deg_log(tmp_path), tmp_path)) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "joint 1 position range" in err and "looks like degrees" in err, err
+
+
+@pytest.mark.parametrize("cmd", ["check", "diagnose", "spectrum", "fit-friction"])
+def test_degrees_warned_with_generic_robot(cmd, tmp_path, capsys):
+    """No limits (--robot generic): the run goes on, with a one-line warning naming the joint."""
+    rc = main(_deg_argv(cmd, "generic", _deg_log(tmp_path), tmp_path))
+    err = capsys.readouterr().err
+    warn = [ln for ln in err.splitlines() if "warning" in ln and "degrees" in ln]
+    assert rc == 0 and len(warn) == 1 and "joint 1 positions span 137.5" in warn[0], err
+
+
+def test_degrees_with_urdf_continuous_joint(tmp_path, capsys):
+    """A URDF joint without limits (cart-pole hinge) warns; its prismatic joint with limits is checked."""
+    log = _deg_log(tmp_path, two_joints=True)
+    assert main(["check", log, "--robot", str(MODELS / "cartpole.urdf")]) == 0
+    err = capsys.readouterr().err
+    assert "joint 2 positions span" in err and "joint 1" not in err, err
+    # and a radian log of the same robot gives no warning
+    assert main(["check", str(_csv(tmp_path / "rad.csv", _log_cols())), "--robot", "generic"]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_degrees_warnings_api():
+    from drake_est.data import degrees_warnings, from_arrays
+
+    t = np.arange(200) * 0.01
+    deg = from_arrays(t, np.degrees(np.sin(t))[:, None] * 2, joints=[3])
+    assert len(degrees_warnings(deg)) == 1 and "joint 3" in degrees_warnings(deg)[0]
+    assert degrees_warnings(deg, prismatic={3}) == []                 # metres on a linear axis
+    assert degrees_warnings(deg, limits={3: (-3.0, 3.0)}) == []       # judged by load_log's limit check
+    multi_turn = from_arrays(t, (500 + 50 * t)[:, None], joints=[1])   # a motor far from zero: beyond +-400
+    assert degrees_warnings(multi_turn) == []
+    assert degrees_warnings(from_arrays(t, np.sin(t)[:, None], joints=[1])) == []
+
+
+def test_robot_option_errors(tmp_path, capsys):
+    log = str(_csv(tmp_path / "ok.csv", _log_cols()))
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot name='x'><link name='a'/>")
+    for robot, frag in (("foo", "--robot must be"), (str(tmp_path / "none.urdf"), "robot model not found"),
+                        (str(bad), "cannot load robot model")):
+        assert main(["check", log, "--robot", robot]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and frag in err, err

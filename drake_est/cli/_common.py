@@ -26,3 +26,24 @@ def check_number(name: str, val, lo=None, hi=None, lo_strict: bool = False, hi_s
     if hi is not None and (v > hi or (hi_strict and v == hi)):
         raise DataError(f"{name} must be in {rng}{u}, got {val:g}")
     return val
+
+
+def warn(command: str, message: str) -> None:
+    """A one-line warning on stderr (the run goes on)."""
+    import sys
+
+    print(f"drake-est {command}: warning: {message}", file=sys.stderr)
+
+
+def load_log_checked(path, robot, command: str, nan_policy: str = "raise", **kw):
+    """``load_log`` with the position-unit checks of ``robot`` ("irb140", "generic"/None, a URDF path):
+    joints with known limits are refused when far outside them (degrees), the others warn when their
+    positions look like degrees (:func:`drake_est.data.degrees_warnings`)."""
+    from drake_est.data import degrees_warnings, load_log
+    from drake_est.robots import robot_position_limits
+
+    limits, prismatic = robot_position_limits(robot)
+    log = load_log(path, limits=limits or None, nan_policy=nan_policy, **kw)
+    for w in degrees_warnings(log, limits, prismatic):
+        warn(command, f"{path}: {w}")
+    return log

@@ -50,18 +50,15 @@ def _new_dir(out):
 
 
 def run(args) -> int:
-    from drake_est.data import load_log
     from drake_est.diagnose import diagnose
 
     joints = _joints(args.joints)
     out = _new_dir(args.out)
-    limits = None
-    if args.robot == "irb140":
-        from drake_est.robots import irb140_metadata
+    from drake_est.cli._common import load_log_checked
 
-        limits = irb140_metadata().limits_dict()
     paths = args.log if isinstance(args.log, list) else [args.log]
-    logs = [load_log(p, limits=limits, nan_policy="drop" if args.drop_invalid else "raise") for p in paths]
+    logs = [load_log_checked(p, args.robot, "diagnose", nan_policy="drop" if args.drop_invalid else "raise")
+            for p in paths]
     if len(logs) == 1:
         log = logs[0]
     else:

@@ -21,9 +21,10 @@ def register(sub):
     p.add_argument("--out", default="friction-fit", help="output folder (default ./friction-fit)")
     p.add_argument("--nominal", default="asymmetric", choices=("coulomb", "viscous", "asymmetric"),
                    help="nominal model: (9.1), (9.2) or direction-dependent (9.3) (default)")
-    p.add_argument("--robot", default="auto", choices=("auto", "irb140", "none"),
+    p.add_argument("--robot", default="auto", choices=("auto", "irb140", "none", "generic"),
                    help="subtract the rigid-body torque ID(q, dq, ddq) of this robot and take gear ratio/coupling "
-                        "from its metadata (auto: irb140 when the log has its 6 joints)")
+                        "from its metadata (auto: irb140 when the log has its 6 joints; none = generic: no robot "
+                        "model, a warning when positions look like degrees)")
     p.add_argument("--gear-ratio", type=float, default=None, help="motor/arm gear ratio for --model motor")
     p.add_argument("--holdout", type=float, default=0.3, help="fraction at the end held out for validation (0.3)")
     p.add_argument("--v-min", type=float, default=None, help="drop |v| <= this [rad/s] (default 5%% of max |v|)")
@@ -62,11 +63,17 @@ def run(args) -> int:
     if out.exists() and not out.is_dir():
         raise DrakeEstError(f"--out {args.out} exists and is not a folder")
     nan_policy = "drop" if args.drop_invalid else "raise"
+    from drake_est.cli._common import load_log_checked, warn
+    from drake_est.data import degrees_warnings
+
+    if args.robot == "generic":
+        args.robot = "none"
     log = load_log(args.log, nan_policy=nan_policy)
     if args.robot == "irb140" or (args.robot == "auto" and log.joints == [1, 2, 3, 4, 5, 6]):
-        from drake_est.robots import irb140_metadata
-
-        log = load_log(args.log, limits=irb140_metadata().limits_dict(), nan_policy=nan_policy)   # refuse degrees before using ID
+        log = load_log_checked(args.log, "irb140", "fit-friction", nan_policy=nan_policy)  # refuse degrees before ID
+    else:
+        for w in degrees_warnings(log):
+            warn("fit-friction", f"{args.log}: {w}")
     res, info = fit_log(log, model=args.model, joint=args.joint, robot=args.robot, nominal=args.nominal,
                         gear_ratio=args.gear_ratio, holdout=args.holdout, v_min=args.v_min, a_max=args.a_max,
                         n_position=args.n_position, width_factor=args.width_factor,

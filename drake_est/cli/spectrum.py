@@ -40,6 +40,9 @@ def register(sub):
                    "only for reporting cycles per motor revolution")
     p.add_argument("--drop-invalid", action="store_true", help="drop rows with NaN/inf (counted) instead of failing")
     p.add_argument("--level", type=float, default=0.95, help="confidence level of the bands (default 0.95)")
+    p.add_argument("--robot", default="generic",
+                   help="irb140 or a URDF path: refuse joint positions far outside its limits (degrees?); generic "
+                        "(default): warn when joint positions look like degrees")
     p.set_defaults(func=run)
 
 
@@ -65,7 +68,6 @@ def _gear_from_meta(log, position):
 
 
 def run(args) -> int:
-    from drake_est.data import load_log
     from drake_est.spectral.detect import find_periodic_components
     from drake_est.spectral.plots import plot_amplitude_functions, plot_scan
 
@@ -82,7 +84,10 @@ def run(args) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise DataError(f"--out {args.out} exists and is not a folder")
-    log = load_log(args.log, require_tau=False, nan_policy="drop" if args.drop_invalid else "raise")
+    from drake_est.cli._common import load_log_checked
+
+    log = load_log_checked(args.log, args.robot, "spectrum", nan_policy="drop" if args.drop_invalid else "raise",
+                           require_tau=False)
 
     def column(opt, name):
         try:

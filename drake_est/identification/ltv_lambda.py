@@ -24,6 +24,14 @@ def _select(Phi, Y, lams, order, P, Lambda, sigma_e, refine):
         return _tv_smooth(Phi, Y, lam, order, P, Lambda, None, None, sigma_e, "banded", False, None,
                           want_cov=False).loglik
 
+    T, m, p = Phi.shape
+    r = Y.shape[2]
+    d = len(_poly(order, P)) - 1
+    if sigma_e is None and T * m * r - d * p * r < 1:
+        raise IdentifiabilityError(
+            f"too few samples to choose lambda by maximum likelihood: {T} time steps leave no degree of freedom "
+            f"for the noise variance after the {d * p * r} diffuse initial parameters; give more data or choose "
+            "lambda yourself")
     check_identifiable(Phi, _poly(order, P))
     with np.errstate(invalid="ignore", divide="ignore"):
         lls = np.array([ll(l) for l in lams])

@@ -96,7 +96,9 @@ def _smooth_core(G, Bt, yy, N, lam, c, Lam, prior=None, sigma_e=None, want_cov=T
         s2 = s2_fixed
     else:
         s2 = J / max(N - d * p * r, 1)
-    if want_loglik and prior is None and d > 0 and logdet is not None:
+    if want_loglik and prior is None and d > 0 and logdet is not None and not s2 > 0:
+        loglik = float("nan")   # an exact fit (J = 0, too few samples): the likelihood is unbounded, undefined
+    elif want_loglik and prior is None and d > 0 and logdet is not None:
         # increments w_t = P(z)k_t ~ N(0, s2/lam^2 Lam^{-1}); k -> (k_0..k_{d-1}, w) has Jacobian c_d^((T-d)p)
         ld_reg = (T - d) * float(np.linalg.slogdet(Lam)[1]) + 2.0 * (T - d) * p * np.log(abs(c[-1]))
         loglik = (-(N - d * p * r) / 2.0 * (_LOG2PI + np.log(s2)) - J / (2.0 * s2)
