@@ -2,14 +2,16 @@
 
     python benchmarks/bench_fleet.py --robots 50 --days 30 --json fleet_bench.json
     python benchmarks/bench_fleet.py --skip-acceptance --scaling-logs 120 --json scaling.json
+    python benchmarks/bench_fleet.py --markdown benchmarks/results/fleet_scaling.json   # README table
 
 1. acceptance: ``synth_fleet`` (R robots x D days), ``run_fleet`` with 2 local workers, trends and
    the truth check (every planted change in the top warnings with robot, joint, cause and date +-2 days;
    no warning on a healthy robot); prints the counts.
 2. scaling: the same ``scaling-logs`` generic logs diagnosed into fresh stores with a LocalCluster of
    1 and of 2 worker processes, and with a scheduler and 2 workers started as separate processes
-   (``dask scheduler`` / ``dask worker``); logs/s counted from the first result to the last (cluster
-   start-up excluded; the whole wall time is reported too).
+   (``dask scheduler`` / ``dask worker``); ``logs_per_s_wall`` is the number of logs over the wall time
+   of the whole ``run_fleet`` call (cluster start-up and shut-down included), ``per_log_cpu_s`` the
+   mean diagnosis time per log measured inside the workers.
 3. store: results written per second by the client (one transaction per log).
 4. paper estimate: workers needed for 1,000 robots' daily logs in one hour from the measured per-log
    cost (per worker) and the store's write rate.
@@ -27,9 +29,14 @@ import tempfile
 import time
 from pathlib import Path
 
-for _k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_k, "1")
-os.environ.setdefault("DRAKE_EST_NO_PROGRESS", "1")
+
+
+def _quiet_single_thread_env():
+    """Single-threaded BLAS (inherited by the worker processes) and no progress bars; set before numpy
+    or drake_est is imported (this module imports them only inside functions)."""
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(k, "1")
+    os.environ.setdefault("DRAKE_EST_NO_PROGRESS", "1")
 
 
 def _timed_run(source, store, **kw):
@@ -41,7 +48,7 @@ def _timed_run(source, store, **kw):
 
 
 def _throughput(store):
-    """Logs/s between the first and the last finished result (from the store's worker timings)."""
+    """(number of logs, sum of their diagnosis times measured in the workers [s]) of a store."""
     import sqlite3
     con = sqlite3.connect(store)
     n, tot = con.execute("SELECT COUNT(*), SUM(elapsed_s) FROM logs").fetchone()
@@ -132,6 +139,63 @@ def store_rate(work: Path, n=2000):
     return {"records": n, "records_per_s": n / dt}
 
 
+def cluster_size(per_log_s: float, logs_per_hour: float, store_records_per_s: float) -> dict:
+    """Paper estimate: worker processes (one core each) and store time for ``logs_per_hour`` logs in one
+    hour, from the measured per-log worker time and the store's write rate (one writer)."""
+    import math
+    work = logs_per_hour * per_log_s
+    return {"logs_per_hour": logs_per_hour, "worker_s": work, "workers": work / 3600.0,
+            "workers_rounded_up": max(1, math.ceil(work / 3600.0)),
+            "store_s": logs_per_hour / store_records_per_s}
+
+
+def markdown(res: dict) -> str:
+    """The README's scaling table and cluster-size estimate, generated from a ``--json`` result."""
+    sc, sr = res["scaling"], res["store"]
+    one, two, sep = sc["local_1_workers"], sc["local_2_workers"], sc["separate_scheduler_2_workers"]
+    base = one["logs_per_s_wall"]
+    rows = [("LocalCluster, 1 worker process", one), ("LocalCluster, 2 worker processes", two),
+            ("`dask scheduler` + 2 × `dask worker` (separate processes)", sep)]
+    lines = ["| cluster | wall time [s] | logs/s (wall) | vs 1 worker | worker time per log [s] |",
+             "|---|---|---|---|---|"]
+    for name, r in rows:
+        lines.append(f"| {name} | {r['wall_s']:.1f} | {r['logs_per_s_wall']:.2f} | "
+                     f"{r['logs_per_s_wall'] / base:.2f}× | {r['per_log_cpu_s']:.3f} |")
+    n = sc["logs"]
+    fixed1 = one["wall_s"] - n * one["per_log_cpu_s"]            # start-up, shut-down, client, scheduler
+    fixed2 = two["wall_s"] - n * two["per_log_cpu_s"] / 2
+    ideal = one["wall_s"] / (n * one["per_log_cpu_s"] / 2 + fixed2)
+    per_log = max(one["per_log_cpu_s"], two["per_log_cpu_s"])   # the slower, all-cores-busy figure
+    daily = cluster_size(per_log, 1000, sr["records_per_s"])
+    dense = cluster_size(per_log, 1000 * 180, sr["records_per_s"])
+    lines += ["",
+              f"{sc['logs']} logs; load average {res['load_avg_start'][0]:.2f} at the start, "
+              f"{res['load_avg_end'][0]:.2f} at the end (the benchmark's own load); {res['cpu_count']} cores. "
+              f"The client writes {sr['records_per_s']:,.0f} results/s into the store "
+              f"({sr['records']:,} results, one transaction each).",
+              "",
+              f"Where the {two['logs_per_s_wall'] / base:.2f}× (not 2×) goes: the wall time not spent "
+              f"diagnosing (wall − logs × worker time per log / workers) is {fixed1:.1f} s with 1 worker and "
+              f"{fixed2:.1f} s with 2 (cluster start-up and shut-down, task transfer, the client's store "
+              f"writes), and the worker time per log grows from {one['per_log_cpu_s']:.3f} s to "
+              f"{two['per_log_cpu_s']:.3f} s (+{100 * (two['per_log_cpu_s'] / one['per_log_cpu_s'] - 1):.0f} %) "
+              f"when both cores compute (shared caches and memory bandwidth; the client, scheduler and nanny "
+              f"processes run on the same two cores). With the 1-worker time per log, 2 workers would reach "
+              f"{ideal:.2f}×: the per-log slowdown costs most of the gap, per-task overhead and serialization "
+              f"(within those {fixed2:.1f} s, about {1000 * fixed2 / n:.0f} ms per log at most) little.",
+              "",
+              f"**Cluster size for 1,000 robots' daily logs in one hour (paper estimate).** Per log "
+              f"{per_log:.2f} s of worker time (the 2-worker figure, all cores busy). One 20 s log per robot "
+              f"and day: 1,000 logs = {daily['worker_s']:,.0f} worker-seconds = {daily['workers']:.2f} of one "
+              f"worker process's hour, so **{daily['workers_rounded_up']} worker process (one core)** does it, "
+              f"and the store needs {daily['store_s']:.2f} s of the hour. One hour of logging per robot and day, "
+              f"cut into 20 s logs (180,000 logs): {dense['worker_s']:,.0f} worker-seconds = "
+              f"**{dense['workers_rounded_up']} worker processes** (e.g. {-(-dense['workers_rounded_up'] // 16)} "
+              f"machines of 16 cores), and the single SQLite writer needs {dense['store_s']:.0f} s of the hour, "
+              f"so it is not the limit yet."]
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", type=int, default=50)
@@ -143,7 +207,14 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--keep", default=None, help="keep the work folder here")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--markdown", default=None, metavar="JSON",
+                    help="print the README scaling table from a --json result of an earlier run and exit")
     a = ap.parse_args(argv)
+    _quiet_single_thread_env()
+    if a.markdown:
+        text = markdown(json.loads(Path(a.markdown).read_text()))
+        print(text, end="")
+        return text
     work = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="bench_fleet_"))
     work.mkdir(parents=True, exist_ok=True)
     out = {"cpu_count": os.cpu_count(), "load_avg_start": os.getloadavg()}
