@@ -239,43 +239,69 @@ def particle_heatmap(scn, res: LoopResult, path, coordinate: int = 0, bins: int 
 
 
 # ------------------------------------------------------------------------------------------ meshcat
-def write_meshcat_html(scn, res: LoopResult, cfg, path, meshcat=None, frames: int = 150) -> Path:
-    """Self-contained Meshcat replay: the robot along the run (deflected arm), the seam, the laser stripes
-    and the particle cloud (TCP hypotheses) of the last step; written with ``meshcat.StaticHtml()``."""
-    from pydrake.geometry import Meshcat, MeshcatVisualizer, Rgba
-    from pydrake.perception import BaseField, Fields, PointCloud
+def write_meshcat_html(scn, res: LoopResult, cfg, path, meshcat=None, frames: int = 150,
+                       clouds: int = 40) -> Path:
+    """Self-contained Meshcat replay of a run, written with ``meshcat.StaticHtml()``: the deflected robot,
+    the seam, the laser stripes (fans moving with the true tool, a dot where each meets the seam), the
+    true and estimated tool and the particle cloud, all animated over time (Meshcat's recording: transforms
+    and ``visible`` properties per frame, ``frames`` frames).  The particle cloud is up to ``clouds``
+    snapshots of the logged clouds (every ``particle_every`` steps of the run), each shown from its step
+    until the next one, in the frame of the nominal tool pose that moves every frame.  Scene paths:
+    :mod:`drake_est.seam.viz`."""
+    from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams
     from drake_est.robots import add_irb140
-    from drake_est.seam.filter import laser_measurement, sensor_mount
+    from drake_est.seam import viz
     from drake_est.seam.simulate import deflection
 
+    if frames < 2:
+        raise DataError(f"frames must be >= 2, got {frames}")
     meshcat = meshcat or Meshcat()
+    T = res.X_true.shape[0]
+    dt = scn.config.dt
+    duration = max((T - 1) * dt, dt)
+    # recording rate: every replay frame gets its own animation frame (and at least 30 frames/s)
+    fps = max(30.0, 2.0 * (frames - 1) / duration)
     builder, plant, sg, _ = add_irb140(None, time_step=0.0)
-    vis = MeshcatVisualizer.AddToBuilder(builder, sg, meshcat)
+    vis = MeshcatVisualizer.AddToBuilder(builder, sg, meshcat, MeshcatVisualizerParams(publish_period=1.0 / fps))
     diagram = builder.Build()
     ctx = diagram.CreateDefaultContext()
     pctx = plant.GetMyMutableContextFromRoot(ctx)
-    meshcat.SetLine("seam", scn.seam.points.T, 3.0, Rgba(0.9, 0.1, 0.1, 1))
-    T = res.X_true.shape[0]
+    knots, normals = scn.seam.points, scn.seam.normals
+    dists = tuple(cfg.sensor_distances)
+    depths = [viz.stripe_depth(res.X_true[0], d, knots, normals) for d in dists]
+    viz.draw_static(meshcat, knots, dists, depths, X_FT=scn.X_FT)
+    viz.look_at_seam(meshcat, knots)
     ks = np.unique(np.linspace(0, T - 1, frames).astype(int))
+
+    def nominal(k):
+        return scn.robot.forward_kinematics(res.q_cmd[k]).GetAsMatrix4() @ scn.X_FT
+
+    # particle snapshots: at most `clouds`, evenly over the logged ones; snapshot i is visible on the frames
+    # from its step to the next snapshot's
+    steps = np.asarray(res.particle_steps[:res.particles.shape[0]], int)
+    keep = np.flatnonzero(steps < T)
+    clouds = min(int(clouds), ks.size)
+    if keep.size > clouds:
+        keep = keep[np.unique(np.linspace(0, keep.size - 1, clouds).round().astype(int))]
+    for i, j in enumerate(keep):
+        viz.set_particles(meshcat, res.particles[j], name=str(i))
+    shown = np.searchsorted(steps[keep], ks, side="right") - 1 if keep.size else np.full(ks.size, -1)
+
     vis.StartRecording()
-    for k in ks:
+    for n, k in enumerate(ks):
+        t = k * dt
         q = res.q_cmd[k] + deflection(scn.robot, scn.X_FT, res.q_cmd[k], scn.force[k], scn.config.stiffness)
-        plant.SetPositions(pctx, q)
-        ctx.SetTime(k * scn.config.dt)
+        plant.SetPositions(pctx, q + scn.kin_offsets)
+        ctx.SetTime(t)
         diagram.ForcedPublish(ctx)
+        viz.set_frame(meshcat, viz.frame_poses(res.X_true[k], nominal(k), res.X_est[k], dists, knots, normals),
+                      time_in_recording=t)
+        for i in range(keep.size):        # key frames only where a snapshot's visibility changes
+            vis_now = bool(shown[n] == i)
+            if n == 0 or vis_now != bool(shown[n - 1] == i):
+                meshcat.SetProperty(f"{viz.PREFIX}/particles/{i}", "visible", vis_now, time_in_recording=t)
     vis.StopRecording()
     vis.PublishRecording()
-    Xl = res.X_true[-1]
-    for s, d in enumerate(cfg.sensor_distances):
-        X_WS = Xl @ sensor_mount(d)
-        ends = np.stack([X_WS[:3, 3] + X_WS[:3, 0] * 0.03 + X_WS[:3, 1] * a for a in (-0.03, 0.03)]).T
-        meshcat.SetLine(f"laser/{s}", ends, 2.0, Rgba(0.1, 0.8, 0.1, 1))
-    if res.particles.shape[0]:
-        X_nom = scn.robot.forward_kinematics(res.q_cmd[min(int(res.particle_steps[-1]), T - 1)]).GetAsMatrix4() @ scn.X_FT
-        pts = np.stack([deviation_to_pose(X_nom, xi)[:3, 3] for xi in res.particles[-1]]).T
-        cloud = PointCloud(pts.shape[1], Fields(BaseField.kXYZs))
-        cloud.mutable_xyzs()[:] = pts.astype(np.float32)
-        meshcat.SetObject("particles", cloud, 0.002, Rgba(0.2, 0.3, 1.0, 1))
     path = Path(path)
     path.write_text(meshcat.StaticHtml())
     return path
