@@ -60,13 +60,95 @@ def test_mbrl_bad_input():
         mbrl(None, model, cost, x0, 10, model="ltv", iterations=0)
 
 
-@pytest.mark.slow
-def test_mbrl_ltv_with_nn_prior_runs_and_keeps_the_kl_bound():
+def test_mbrl_ltv_with_successive_nn_prior_runs_and_keeps_the_kl_bound():
     from drake_est.systems.cartpole_plant import CartPoleTrueSystem
     model, cost, x0, _, lo, hi = benchmark_problem()
-    r = mbrl(CartPoleTrueSystem(), model, cost, x0, 400, model="ltv-nn", iterations=2, seed=0, lower=lo, upper=hi)
+    r = mbrl(CartPoleTrueSystem(), model, cost, x0, 400, model="ltv-nn", iterations=2, seed=0, lower=lo, upper=hi,
+             nn_first_steps=150, nn_steps=50, nn_prior_cov=10.0)
     assert len(r.costs) == 2 and all(np.isfinite(r.costs))
     assert all(k <= b * 1.1 + 1e-9 for k, b in zip(r.kl, r.kl_bounds))
+
+
+@pytest.fixture(scope="module")
+def small_pretrained():
+    from drake_est.control.mbrl import pretrain_network_prior
+    return pretrain_network_prior(n_rollouts=4, T=200, steps=400, seed=0)
+
+
+def test_network_prior_warm_start_continues_and_its_linearization_is_affine_consistent(small_pretrained):
+    from drake_est.control.mbrl import NetworkPrior
+    net = small_pretrained
+    model = CartPoleModel()
+    rng = np.random.default_rng(3)
+    T = 100
+    X, U, _ = model.forward(np.array([2.0, 0, 0, 0]), np.zeros((T + 1, 4)), rng.normal(size=(T, 1)),
+                            np.zeros((T, 1, 4)), np.zeros((T, 1)), 0.0, np.full((T, 1), -10.0), np.full((T, 1), 10.0))
+    P = net.linearization(X, U)
+    assert P.shape == (T, 4, 6)
+    # A x + B u + c reproduces the network's own one-step prediction at the linearization points
+    lin = np.einsum("tij,tj->ti", P[:, :, :4], X[:-1]) + P[:, :, 4] * U + P[:, :, 5]
+    np.testing.assert_allclose(lin, net.model_.predict(X[:-1], U), atol=1e-10)
+    # pretrained on the same physics: its A is much closer to the true Jacobian than the identity is
+    fx, fu = model.linearize(X, U)[:2]
+    err = np.linalg.norm(P[:, :, :4] - fx, axis=(1, 2)).mean()
+    assert err < 0.5 * np.linalg.norm(fx - np.eye(4), axis=(1, 2)).mean()
+    # warm start: a further fit continues from the current weights (steps add up, weights move a little)
+    w_before = net.params_s[0][0].copy()
+    n0 = net.total_steps
+    import copy
+    net2 = copy.deepcopy(net)
+    net2.fit([X], [U], steps=5)
+    assert net2.total_steps == n0 + 5
+    assert 0 < np.abs(net2.params_s[0][0] - w_before).max() < 0.1
+    with pytest.raises(DataError, match="steps"):
+        NetworkPrior(steps=0)
+    with pytest.raises(DataError, match="not trained"):
+        NetworkPrior().linearization(X, U)
+
+
+def test_pretrained_prior_changes_the_ltv_fit(small_pretrained):
+    """Sec. 11.2 / Eq. (7.15): a tight prior pulls the LTV fit toward the network's linearization, a very wide
+    one gives back the fit without prior."""
+    model = CartPoleModel()
+    rng = np.random.default_rng(1)
+    T = 200
+    X, U, _ = model.forward(np.array([np.pi - 0.1, 0, 0, 0]), np.zeros((T + 1, 4)), rng.normal(size=(T, 1)) * 2,
+                            np.zeros((T, 1, 4)), np.zeros((T, 1)), 0.0, np.full((T, 1), -10.0), np.full((T, 1), 10.0))
+    P = small_pretrained.linearization(X, U)
+    free, _ = fit_ltv(X, U)
+    tight, _ = fit_ltv(X, U, prior=P, prior_cov=1e-8 * np.eye(6))
+    wide, _ = fit_ltv(X, U, prior=P, prior_cov=1e12 * np.eye(6))
+
+    def dist(m):
+        return np.linalg.norm(m.A - P[:, :, :4], axis=(1, 2)).mean()
+    assert dist(tight) < 0.5 * dist(free)
+    np.testing.assert_allclose(wide.A, free.A, atol=1e-4 * max(1.0, np.abs(free.A).max()))
+    for m in (free, tight):      # both still explain the data along the trajectory
+        pred = np.einsum("tij,tj->ti", m.A, X[:-1]) + np.einsum("tij,tj->ti", m.B, U) + m.c
+        assert np.linalg.norm(pred - X[1:]) < 1e-3 * np.linalg.norm(X[1:] - X[:-1])
+    with pytest.raises(DataError, match="sigma_e"):
+        fit_ltv(X, U, prior=P, prior_cov=np.eye(6), sigma_e=-1.0)
+
+
+def test_mbrl_with_pretrained_prior_runs_and_the_prior_matters(small_pretrained):
+    from drake_est.systems.cartpole_plant import CartPoleTrueSystem
+    model, cost, x0, _, lo, hi = benchmark_problem()
+    kw = dict(model="ltv-nn-pretrained", iterations=2, seed=0, lower=lo, upper=hi, pretrained=small_pretrained)
+    r = mbrl(CartPoleTrueSystem(), model, cost, x0, 400, nn_prior_cov=1e-6, **kw)
+    r_wide = mbrl(CartPoleTrueSystem(), model, cost, x0, 400, nn_prior_cov=1e12, **kw)
+    r_ltv = mbrl(CartPoleTrueSystem(), model, cost, x0, 400, model="ltv", iterations=2, seed=0, lower=lo, upper=hi)
+    assert all(np.isfinite(r.costs)) and all(k <= b * 1.1 + 1e-9 for k, b in zip(r.kl, r.kl_bounds))
+    assert r.costs[0] == r_wide.costs[0] == r_ltv.costs[0]           # same first experiment
+    assert abs(r.costs[1] - r_wide.costs[1]) > 1e-3 * r_wide.costs[1]  # the tight prior changed the controller
+    assert abs(r_wide.costs[1] - r_ltv.costs[1]) < 1e-2 * r_ltv.costs[1]  # a very wide one is the plain LTV
+
+
+def test_mbrl_nn_arguments_are_validated(small_pretrained):
+    model, cost, x0, _, lo, hi = benchmark_problem()
+    with pytest.raises(DataError, match="pretrained"):
+        mbrl(None, model, cost, x0, 10, model="ltv", pretrained=small_pretrained)
+    with pytest.raises(DataError, match="nn_prior_cov"):
+        mbrl(None, model, cost, x0, 10, model="ltv-nn", nn_prior_cov=0.0)
 
 
 def test_fit_ltv_skips_singular_lambdas_and_raises_when_all_are():
