@@ -161,7 +161,17 @@ def test_manifest_errors(tmp_path):
         discover(m)
     with pytest.raises(DataError, match="does not exist"):
         discover(tmp_path / "nothing")
+    (tmp_path / "empty.csv").write_text("")
+    with pytest.raises(DataError, match="is empty"):
+        discover(tmp_path / "empty.csv")
     assert parse_time("2026-05-12T08-30-00") == "2026-05-12T08:30:00"
+
+
+def test_plan_smallest_fleet():
+    """3 robots (two generic, one IRB 140): every planted change and corrupt log has a robot."""
+    truth = plan_fleet(3, 8, seed=0)
+    assert len(truth["changes"]) == 3 and len(truth["corrupt"]) == 2
+    assert all(truth["robots"][c["robot"]]["model"] == "generic" for c in truth["corrupt"])
 
 
 def test_plan_checks_sizes():

@@ -236,3 +236,43 @@ def test_bad_logs_fail_one_by_one_and_the_run_goes_on(generic_fleet, tmp_path):
     before = _rows(db)
     c = run_fleet(man, db, show_progress=False)        # nothing left to do: no cluster is even started
     assert c["skipped"] == len(rows) and c["submitted"] == 0 and _rows(db) == before
+
+
+@pytest.mark.slow
+def test_cli_on_a_separately_started_cluster(generic_fleet, tmp_path):
+    """The README's real-cluster recipe: `dask scheduler`, `dask worker`, `drake-est fleet diagnose --scheduler`."""
+    out, s = generic_fleet
+    dask = shutil.which("dask") or str(Path(sys.executable).with_name("dask"))
+    sf = tmp_path / "scheduler.json"
+    env = dict(os.environ, DRAKE_EST_NO_PROGRESS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    procs = [subprocess.Popen([dask, "scheduler", "--port", "0", "--dashboard-address", ":0", "--scheduler-file",
+                               str(sf)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)]
+    try:
+        deadline = time.time() + 60
+        while not (sf.exists() and sf.stat().st_size) and time.time() < deadline:
+            time.sleep(0.1)
+        addr = json.loads(sf.read_text())["address"]
+        procs.append(subprocess.Popen([dask, "worker", addr, "--nworkers", "auto", "--nthreads", "1",
+                                       "--dashboard-address", ":0"], stdout=subprocess.DEVNULL,
+                                      stderr=subprocess.DEVNULL, env=env))
+        db = tmp_path / "c.db"
+        cmd = [sys.executable, "-m", "drake_est", "fleet", "diagnose", str(out / "manifest.csv"), "--store", str(db),
+               "--scheduler", addr, "--limit", "6"]
+        p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+        assert p.returncode == 0 and "0 unfinished" in p.stdout and len(_rows(db)) == 6, p.stdout + p.stderr
+        first = _rows(db)
+        p = subprocess.run(cmd[:-2], env=env, capture_output=True, text=True, timeout=300)
+        assert p.returncode == 0, p.stdout + p.stderr
+        rows = _rows(db)
+        keys = [r[:3] for r in rows]
+        assert rows[:6] == first and len(keys) == len(set(keys)) == s["logs"]
+        with FleetStore(db, write=False) as st:
+            assert st.query("SELECT DISTINCT scheduler FROM runs") == [(addr,)]
+    finally:
+        for pr in procs[::-1]:
+            pr.terminate()
+        for pr in procs[::-1]:
+            try:
+                pr.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                pr.kill()

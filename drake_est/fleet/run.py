@@ -93,6 +93,9 @@ def _read_manifest(path: Path) -> list:
     with open(path, newline="") as fh:
         reader = csv.DictReader(fh)
         cols = reader.fieldnames or []
+        if not cols:
+            raise DataError(f"manifest {path} is empty (expected a header line robot_id,time,path"
+                            f"[,joints,robot_model] and one line per log)")
         missing = [c for c in MANIFEST_COLUMNS if c not in cols]
         if missing:
             raise DataError(f"manifest {path}: missing column(s) {', '.join(missing)} (have: {', '.join(cols)})")

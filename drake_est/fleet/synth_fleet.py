@@ -163,8 +163,9 @@ def plan_fleet(robots: int, days: int, seed: int = 0, n_irb140: int | None = Non
     n_corrupt = max(2, robots * days // 300) if n_corrupt is None else int(n_corrupt)
     kinds = ("truncated", "nan_torque", "time_reversed")
     corrupt = []
+    pool = pick[2:] if len(pick) > 2 else pick       # healthy generic robots; the planted ones when none
     for c in range(n_corrupt):
-        corrupt.append({"robot": generic_ids[pick[2 + c % max(1, len(generic_ids) - 2)]],
+        corrupt.append({"robot": generic_ids[pool[c % len(pool)]],
                         "day": int(rng.integers(0, days)), "kind": kinds[c % 3]})
     return {"seed": seed, "robots": rob, "days": days, "start_date": start, "changes": changes,
             "corrupt": corrupt, "sample_rate_hz": SAMPLE_RATE}
