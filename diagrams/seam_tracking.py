@@ -8,11 +8,14 @@ commanded joints.  The open loop (same model, no correction) is run beside it.
 
     python diagrams/seam_tracking.py [--duration 10] [--out seam_tracking.png] [--seam xy|yz|FILE]
                                      [--sensors 2] [--particles 500] [--seed 0] [--meshcat]
+                                     [--realtime-rate R]
 
 ``--duration`` is the time to traverse the 200 mm seam.  Writes the figure, ``<out stem>.json`` next to it
 (``cross_seam_rmse_mm`` closed loop, ``open_loop_cross_seam_rmse_mm``, ``orientation_rmse_deg``,
 ``filter_steps_per_s``, ``realtime_factor``, ...), the particle heat map and the Meshcat replay ``seam.html``.
-With ``--meshcat`` a live Meshcat is served as well.
+With ``--meshcat`` a live Meshcat is served as well: the robot, the seam, the laser stripes and the particle
+cloud update during the simulation (every 0.05 s of simulated time; ``--realtime-rate 1`` to watch it at
+real time).
 """
 import argparse
 import json
@@ -28,7 +31,8 @@ def main(argv=None):
     ap.add_argument("--sensors", type=int, default=2, choices=[0, 1, 2])
     ap.add_argument("--particles", type=int, default=500)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--meshcat", action="store_true")
+    ap.add_argument("--meshcat", action="store_true", help="serve a live Meshcat (prints its URL)")
+    ap.add_argument("--realtime-rate", type=float, default=None, help="simulate at this multiple of real time")
     a = ap.parse_args(argv)
 
     from drake_est.jsonutil import dump_json
@@ -45,7 +49,8 @@ def main(argv=None):
         live = Meshcat()
         print("Meshcat:", live.web_url())
     res = run_tracking(a.seam, sensors=a.sensors, particles=a.particles, seed=a.seed, out_dir=folder,
-                       scenario_config=ScenarioConfig(speed=seam.length / a.duration), live_meshcat=live)
+                       scenario_config=ScenarioConfig(speed=seam.length / a.duration), live_meshcat=live,
+                       realtime_rate=a.realtime_rate)
     if (folder / "tracking.png").resolve() != out.resolve():
         shutil.move(str(folder / "tracking.png"), str(out))
     dump_json(res, out.with_suffix(".json"))

@@ -131,3 +131,51 @@ def test_replay_renders_in_a_real_browser(short_run, tmp_path):
     assert len(np.unique(img.reshape(-1, 3), axis=0)) > 50            # not blank
     assert ((r > 170) & (g < 90) & (abs(g - b) < 20)).sum() > 50      # the seam line (red, not the orange arm)
     assert ((g > 150) & (r < 120) & (b < 120)).sum() > 5              # laser stripes / hits
+
+
+def _packed_transform(meshcat, path):
+    """The 4x4 transform last sent for ``path`` (Meshcat's packed set_transform message)."""
+    import msgpack
+    msg = msgpack.unpackb(meshcat._GetPackedTransform(path), raw=False)
+    return np.array(msg["matrix"], float).reshape(4, 4).T          # column-major in the message
+
+
+def test_live_meshcat_in_the_diagram_draws_and_does_not_change_the_run():
+    pytest.importorskip("msgpack")
+    from pydrake.geometry import Meshcat
+    from pydrake.systems.analysis import Simulator
+    from drake_est.seam.filter import sensor_mount
+    from drake_est.systems.seam import MakeSeamTrackingDiagram
+    scn = make_scenario(thesis_seam("xy", n_points=81), ScenarioConfig(speed=1.0, dt=1e-2), seed=0)
+    cfg = filter_config_for(scn, 2, 40)
+    t_end = (scn.T - 1) * scn.config.dt
+    logs = []
+    meshcat = Meshcat()
+    for m in (None, meshcat):
+        diagram, h = MakeSeamTrackingDiagram(scn, cfg, seed=0, meshcat=m, meshcat_period=0.05)
+        sim = Simulator(diagram)
+        sim.AdvanceTo(t_end)
+        ctx = sim.get_context()
+        logs.append((h["log_est"].FindLog(ctx).data().copy(), h["log_pose"].FindLog(ctx).data().copy()))
+        if m is None:
+            assert h["meshcat_overlay"] is None and h["meshcat_visualizer"] is None
+    # the live view only observes: the run is bit-identical with and without it
+    np.testing.assert_array_equal(logs[0][0], logs[1][0])
+    np.testing.assert_array_equal(logs[0][1], logs[1][1])
+    for p in ("seam", "laser/0", "laser/1", "laser_hit/0", "tool", "estimate", "particles", "particles/live"):
+        assert meshcat.HasPath(f"{viz.PREFIX}/{p}"), p
+    assert meshcat.HasPath("visualizer")
+    # the last publish (t = 0.05 k <= t_end) put the laser stripe at the true tool pose of that time times T_S
+    t_pub = np.floor(t_end / 0.05 + 1e-9) * 0.05
+    k = int(round(t_pub / scn.config.dt))
+    X_true = logs[1][1][:, k].reshape(4, 4)
+    X_las = _packed_transform(meshcat, f"{viz.PREFIX}/laser/0")
+    np.testing.assert_allclose(X_las, X_true @ sensor_mount(cfg.sensor_distances[0]), atol=1e-9)
+
+
+def test_cli_bad_realtime_rate_exits_2(tmp_path):
+    import sys
+    r = subprocess.run([sys.executable, "-m", "drake_est", "track", "--seam", "xy", "--realtime-rate", "0",
+                        "--out", str(tmp_path)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "--realtime-rate" in r.stderr and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1

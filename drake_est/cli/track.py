@@ -14,7 +14,13 @@ def register(sub):
     p.add_argument("--particles", type=int, default=500, help="number of particles (default 500)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--speed", type=float, default=None, help="travel speed [m/s] (default 0.02)")
-    p.add_argument("--meshcat", action="store_true", help="also serve a live Meshcat (prints its URL)")
+    p.add_argument("--meshcat", action="store_true",
+                   help="also serve a live Meshcat (prints its URL): robot, seam, laser stripes and particle cloud "
+                        "update during the run (every 0.05 s of simulated time); the replay is loaded into it "
+                        "afterwards")
+    p.add_argument("--realtime-rate", type=float, default=None,
+                   help="run the simulation at this multiple of real time (e.g. 1 to watch it live; default: as "
+                        "fast as possible)")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=run)
 
@@ -30,13 +36,16 @@ def run(args) -> int:
     sc = ScenarioConfig() if args.speed is None else ScenarioConfig(speed=args.speed)
     if not sc.speed > 0:
         raise DataError(f"--speed must be > 0, got {args.speed}")
+    if args.realtime_rate is not None and not args.realtime_rate > 0:
+        raise DataError(f"--realtime-rate must be > 0, got {args.realtime_rate}")
     live = None
     if args.meshcat:
         from pydrake.geometry import Meshcat
         live = Meshcat()
         print(f"Meshcat: {live.web_url()}")
     res = run_tracking(args.seam, sensors=args.sensors, particles=args.particles, seed=args.seed,
-                       out_dir=args.out, scenario_config=sc, live_meshcat=live)
+                       out_dir=args.out, scenario_config=sc, live_meshcat=live,
+                       realtime_rate=args.realtime_rate)
     out = Path(args.out)
     dump_json(res, out / "track.json")
     print(f"cross-seam RMSE {res['cross_seam_rmse_mm']:.3f} mm closed loop, "

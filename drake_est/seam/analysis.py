@@ -57,15 +57,19 @@ def check_laser_sees_seam(scn, cfg: SeamFilterConfig) -> None:
 
 
 # ------------------------------------------------------------------------------------------ one run
-def simulate_diagram(scn, cfg, seed: int = 0, closed_loop: bool = True, particle_every: int = 20):
+def simulate_diagram(scn, cfg, seed: int = 0, closed_loop: bool = True, particle_every: int = 20, meshcat=None,
+                     meshcat_period: float = 0.05, realtime_rate: float | None = None):
     """Run the seam-tracking Diagram over the whole scenario; returns (LoopResult, wall time [s], CPU time of
-    this process [s])."""
+    this process [s]).  With ``meshcat`` the robot, seam, laser stripes and particle cloud are drawn live every
+    ``meshcat_period`` [s] of simulated time; ``realtime_rate`` slows the simulator to that multiple of real
+    time (to watch it; None: as fast as possible)."""
     from pydrake.systems.analysis import Simulator
     from drake_est.systems.seam import MakeSeamTrackingDiagram
 
     dt = scn.config.dt
     diagram, h = MakeSeamTrackingDiagram(scn, cfg, closed_loop=closed_loop, seed=seed,
-                                         particle_period=particle_every * dt)
+                                         particle_period=particle_every * dt, meshcat=meshcat,
+                                         meshcat_period=meshcat_period)
     sim = Simulator(diagram)
     ctx = sim.get_context()
     t_end = (scn.T - 1) * dt
@@ -81,6 +85,10 @@ def simulate_diagram(scn, cfg, seed: int = 0, closed_loop: bool = True, particle
         return EventStatus.Succeeded()
 
     sim.set_monitor(monitor)
+    if realtime_rate is not None:
+        if not realtime_rate > 0:
+            raise DataError(f"realtime_rate must be > 0, got {realtime_rate}")
+        sim.set_target_realtime_rate(float(realtime_rate))
     sim.Initialize()
     t0, c0 = time.perf_counter(), time.process_time()
     sim.AdvanceTo(t_end)
@@ -102,16 +110,19 @@ def simulate_diagram(scn, cfg, seed: int = 0, closed_loop: bool = True, particle
 
 
 def run_tracking(seam_arg: str, sensors: int = 2, particles: int = 500, seed: int = 0, out_dir=".",
-                 scenario_config: ScenarioConfig | None = None, html: bool = True, live_meshcat=None) -> dict:
+                 scenario_config: ScenarioConfig | None = None, html: bool = True, live_meshcat=None,
+                 realtime_rate: float | None = None) -> dict:
     """``drake-est track``: the closed loop in the Drake Diagram and the open loop (numpy loop, the same
-    model), plots, ``seam.html`` and the numbers of ``track.json``."""
+    model), plots, ``seam.html`` and the numbers of ``track.json``.  ``live_meshcat``: a Meshcat drawn live
+    during the run (and given the replay afterwards); ``realtime_rate``: see :func:`simulate_diagram`."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     seam = seam_from_arg(seam_arg)
     scn = make_scenario(seam, scenario_config or ScenarioConfig(), seed=seed)
     cfg = filter_config_for(scn, sensors, particles)
     check_laser_sees_seam(scn, cfg)
-    closed, wall, cpu = simulate_diagram(scn, cfg, seed=seed, closed_loop=True)
+    closed, wall, cpu = simulate_diagram(scn, cfg, seed=seed, closed_loop=True, meshcat=live_meshcat,
+                                         realtime_rate=realtime_rate)
     opened = run_loop(scn, cfg, closed_loop=False, seed=seed)
     mc, mo = tracking_metrics(scn, closed), tracking_metrics(scn, opened)
     sim_time = (scn.T - 1) * scn.config.dt
@@ -255,6 +266,8 @@ def write_meshcat_html(scn, res: LoopResult, cfg, path, meshcat=None, frames: in
 
     if frames < 2:
         raise DataError(f"frames must be >= 2, got {frames}")
+    if meshcat is not None:      # a live view's last particle cloud is not part of the replay
+        meshcat.Delete(f"{viz.PREFIX}/particles/live")
     meshcat = meshcat or Meshcat()
     T = res.X_true.shape[0]
     dt = scn.config.dt

@@ -10,7 +10,12 @@ Thin wrappers: every number comes from :mod:`drake_est.seam.filter` / :mod:`drak
   SE(3) seam model);
 * :class:`SeamTrackingController` -- corrects the commanded joints from the estimate.
 
-:func:`MakeSeamTrackingDiagram` wires them with trajectory sources for the nominal joints and the force.
+* :class:`SeamMeshcatOverlay` -- live Meshcat drawing of the seam, the laser stripes, the true and estimated
+  tool and the particle cloud at a modest publish rate (:mod:`drake_est.seam.viz`).
+
+:func:`MakeSeamTrackingDiagram` wires them with trajectory sources for the nominal joints and the force; given
+a ``meshcat`` it adds the robot (``MeshcatVisualizer`` of a geometry-only IRB 140 posed by the deflected arm)
+and the overlay, both publishing every ``meshcat_period`` of simulated time.
 """
 from __future__ import annotations
 
@@ -202,11 +207,109 @@ class SeamTrackingController(LeafSystem):
         discrete_state.get_mutable_vector(self._c).SetFromVector(c)
 
 
+class SeamMeshcatOverlay(LeafSystem):
+    """Live Meshcat view of seam tracking: at initialization draws the seam, the laser fans and the tool and
+    estimate markers (and points the camera at the seam); every ``period`` of simulated time (a publish event,
+    no state) moves the laser stripes with the true tool, the estimate marker and the particles' frame, and
+    replaces the particle cloud.  Scene paths: :mod:`drake_est.seam.viz`.
+
+    Input ports: ``tool_pose`` (16) true tool pose, 4x4 row-major, translation [m]; ``commanded_joints`` (6)
+    [rad]; ``estimate`` (6) deviation xi = [dp [m], dtheta [rad]] from F_k(q_cmd) X_FT; ``particles`` (6 N)
+    row-major particle deviations [m, rad]."""
+
+    def __init__(self, meshcat, tool_pose, X_FT, seam_points, seam_normals, sensor_distances, n_particles: int,
+                 period: float = 0.05):
+        super().__init__()
+        if not period > 0:
+            raise DataError(f"meshcat period must be > 0, got {period}")
+        from drake_est.seam import viz
+        self._viz, self._meshcat, self._tool_pose = viz, meshcat, tool_pose
+        self._X_FT = np.asarray(X_FT, float)
+        self._knots = np.ascontiguousarray(seam_points, float)
+        self._normals = np.ascontiguousarray(seam_normals, float)
+        self._dists = tuple(float(d) for d in sensor_distances)
+        self._N = int(n_particles)
+        self._pose = self.DeclareVectorInputPort("tool_pose", 16)
+        self._q = self.DeclareVectorInputPort("commanded_joints", 6)
+        self._est = self.DeclareVectorInputPort("estimate", 6)
+        self._particles = self.DeclareVectorInputPort("particles", 6 * self._N)
+        self.DeclareInitializationPublishEvent(self._draw_static)
+        self.DeclarePeriodicPublishEvent(float(period), 0.0, self._publish)
+
+    def get_tool_pose_input_port(self):
+        return self._pose
+
+    def get_commanded_joints_input_port(self):
+        return self._q
+
+    def get_estimate_input_port(self):
+        return self._est
+
+    def get_particles_input_port(self):
+        return self._particles
+
+    def _draw_static(self, context):
+        X = np.asarray(self._pose.Eval(context)).reshape(4, 4)
+        depths = [self._viz.stripe_depth(X, d, self._knots, self._normals) for d in self._dists]
+        self._viz.draw_static(self._meshcat, self._knots, self._dists, depths, X_FT=self._X_FT)
+        self._viz.look_at_seam(self._meshcat, self._knots)
+
+    def _publish(self, context):
+        v = self._viz
+        X_true = np.asarray(self._pose.Eval(context)).reshape(4, 4)
+        X_nom = np.asarray(self._tool_pose(self._q.Eval(context)), float)
+        X_est = v.estimate_pose(X_nom, self._est.Eval(context))
+        v.set_frame(self._meshcat, v.frame_poses(X_true, X_nom, X_est, self._dists, self._knots, self._normals))
+        v.set_particles(self._meshcat, np.asarray(self._particles.Eval(context)).reshape(self._N, 6))
+
+
+def AddSeamMeshcat(builder, scenario, model, arm, controller, estimator, meshcat, period: float = 0.05):
+    """Live Meshcat for the seam-tracking Diagram: the IRB 140 drawn at the deflected joints plus the true
+    kinematic offsets (a geometry-only ``MultibodyPlant`` posed by ``MultibodyPositionToGeometryPose``, so no
+    dynamics are simulated) through a ``MeshcatVisualizer``, and a :class:`SeamMeshcatOverlay`; both publish
+    every ``period`` [s] of simulated time.  Returns (visualizer, overlay)."""
+    from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, SceneGraph
+    from pydrake.multibody.parsing import Parser
+    from pydrake.multibody.plant import MultibodyPlant
+    from pydrake.systems.primitives import Adder, ConstantVectorSource
+    from pydrake.systems.rendering import MultibodyPositionToGeometryPose
+
+    if not period > 0:
+        raise DataError(f"meshcat period must be > 0, got {period}")
+    sg = builder.AddSystem(SceneGraph())
+    plant = MultibodyPlant(0.0)
+    plant.RegisterAsSourceForSceneGraph(sg)
+    (inst,) = Parser(plant).AddModels(str(scenario.robot.urdf))
+    root = plant.get_body(plant.GetBodyIndices(inst)[0])
+    plant.WeldFrames(plant.world_frame(), root.body_frame())
+    plant.Finalize()
+    if plant.num_positions() != 6:
+        raise DataError(f"the robot model for Meshcat has {plant.num_positions()} positions, expected 6")
+    to_pose = builder.AddSystem(MultibodyPositionToGeometryPose(plant))   # keeps the plant alive
+    offsets = builder.AddSystem(ConstantVectorSource(np.asarray(scenario.kin_offsets, float)))
+    add = builder.AddSystem(Adder(2, 6))
+    builder.Connect(arm.get_arm_joints_output_port(), add.get_input_port(0))
+    builder.Connect(offsets.get_output_port(), add.get_input_port(1))
+    builder.Connect(add.get_output_port(), to_pose.get_input_port())
+    builder.Connect(to_pose.get_output_port(), sg.get_source_pose_port(plant.get_source_id()))
+    vis = MeshcatVisualizer.AddToBuilder(builder, sg, meshcat, MeshcatVisualizerParams(publish_period=period))
+    overlay = builder.AddSystem(SeamMeshcatOverlay(meshcat, model.tool_pose, scenario.X_FT, scenario.seam.points,
+                                                   scenario.seam.normals, model.config.sensor_distances,
+                                                   estimator.get_particles_output_port().size() // 6, period))
+    builder.Connect(arm.get_tool_pose_output_port(), overlay.get_tool_pose_input_port())
+    builder.Connect(controller.get_commanded_joints_output_port(), overlay.get_commanded_joints_input_port())
+    builder.Connect(estimator.get_estimate_output_port(), overlay.get_estimate_input_port())
+    builder.Connect(estimator.get_particles_output_port(), overlay.get_particles_input_port())
+    return vis, overlay
+
+
 # ------------------------------------------------------------------------------------------- builder
 def MakeSeamTrackingDiagram(scenario, filter_config=None, closed_loop: bool = True, seed: int = 0,
-                            gain: float = 0.02, particle_period: float | None = None):
+                            gain: float = 0.02, particle_period: float | None = None, meshcat=None,
+                            meshcat_period: float = 0.05):
     """The closed-loop seam-tracking Diagram: nominal-joint and force sources -> controller -> compliant arm
-    -> sensors -> estimator -> controller.  Returns (diagram, handles dict with the systems and loggers)."""
+    -> sensors -> estimator -> controller; with ``meshcat`` also the live view (:func:`AddSeamMeshcat`,
+    publishing every ``meshcat_period`` [s]).  Returns (diagram, handles dict with the systems and loggers)."""
     from pydrake.systems.primitives import Multiplexer, TrajectorySource, VectorLogSink
     from pydrake.trajectories import PiecewisePolynomial
     from drake_est.seam.filter import SeamFilterConfig
@@ -247,9 +350,13 @@ def MakeSeamTrackingDiagram(scenario, filter_config=None, closed_loop: bool = Tr
     if particle_period:
         log_parts = b.AddSystem(VectorLogSink(6 * pf.N, particle_period))
         b.Connect(est.get_particles_output_port(), log_parts.get_input_port())
+    vis = overlay = None
+    if meshcat is not None:
+        vis, overlay = AddSeamMeshcat(b, scenario, model, arm, ctrl, est, meshcat, meshcat_period)
     diagram = b.Build()
     return diagram, {"controller": ctrl, "arm": arm, "sensors": sens, "estimator": est, "pf": pf, "model": model,
-                     "log_pose": log_pose, "log_cmd": log_cmd, "log_est": log_est, "log_particles": log_parts}
+                     "log_pose": log_pose, "log_cmd": log_cmd, "log_est": log_est, "log_particles": log_parts,
+                     "meshcat_visualizer": vis, "meshcat_overlay": overlay}
 
 
 class _Slice(LeafSystem):
@@ -296,6 +403,10 @@ def contract_cases():
         ContractCase(make=lambda: SeamTrackingController(scn, 0.01), inputs={"reference_joints": q0,
                                                                            "estimate": np.zeros(6)},
                      t_final=0.03),
+        ContractCase(make=lambda: SeamMeshcatOverlay(_contract_meshcat(), model.tool_pose, scn.X_FT, scn.seam.points,
+                                                     scn.seam.normals, cfg.sensor_distances, pf.N, 0.01),
+                     inputs={"tool_pose": Xt.reshape(-1), "commanded_joints": q0, "estimate": np.zeros(6),
+                             "particles": np.zeros(6 * pf.N)}, t_final=0.03),
         ContractCase(make=lambda: _Slice(5, 1, 3), inputs={"input": np.arange(5.0)},
                      expected=lambda s: {"output": np.array([1.0, 2.0])}),
     ]
@@ -312,3 +423,11 @@ def _contract_scenario():
         seam = thesis_seam("xy", n_points=41)
         _SCN["s"] = make_scenario(seam, ScenarioConfig(speed=2.0, dt=1e-2), seed=0)
     return _SCN["s"]
+
+
+def _contract_meshcat():
+    """One Meshcat server for the contract checks (cached)."""
+    if "meshcat" not in _SCN:
+        from pydrake.geometry import Meshcat
+        _SCN["meshcat"] = Meshcat()
+    return _SCN["meshcat"]
