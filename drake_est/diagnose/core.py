@@ -20,6 +20,7 @@ import numpy as np
 
 import scipy.stats
 
+import drake_est.diagnose.competition as comp
 import drake_est.diagnose.detectors as det
 from drake_est.diagnose.quantization import torque_step  # noqa: F401  (re-exported)
 from drake_est.diagnose.nominal import OUTLIER_MAD, block_index, nominal_columns, nominal_names, prepare
@@ -281,6 +282,29 @@ def _competition(ext, tst, results) -> dict:
             "ambiguous": bool(t2["significant"] and margin < AMBIGUITY_MARGIN)}
 
 
+def _best_surviving(prep, model, fit, sig, alpha, min_gain):
+    """The best significant candidate that is not a smooth speed/time law merely absorbing a periodic
+    residual (:func:`~drake_est.diagnose.competition.survives_periodic`); (None, [...]) when none is left.
+    Also returns the candidates set aside that way, with their partial tests."""
+    sig = sorted(sig, key=lambda r: -r[1]["score"])
+    away, nuisance = [], {}
+    for r in sig:
+        ext = r[0]
+        if ext.effect in comp.CONFOUNDABLE and not ext.shared:
+            if ext.joint not in nuisance:
+                nuisance[ext.joint] = comp.periodic_nuisance(prep, model, fit, ext.joint)
+            t = comp.survives_periodic(prep, model, fit, ext, alpha, min_gain, nuisance=nuisance[ext.joint]) \
+                if nuisance[ext.joint] is not None else {"significant": True}
+            if not t["significant"]:
+                r[1]["significant"] = False
+                r[1]["explained_by_periodic_residual"] = True
+                away.append({"effect": ext.effect, "joint": int(ext.joint),
+                             **{k: v for k, v in t.items() if k != "significant"}})
+                continue
+        return r, away
+    return None, away
+
+
 def _search(prep, max_findings, alpha, min_gain):
     model = Model(prep)
     fit0 = model.fit()
@@ -306,12 +330,19 @@ def _search(prep, max_findings, alpha, min_gain):
                 tst["below_quantization_step"] = True
             results.append((ext, tst, f1, m1))
         sig = [r for r in results if r[1]["significant"]]
-        if not sig:
+        best, explained_away = _best_surviving(prep, model, fit, sig, alpha, min_gain)
+        if best is None:
             rejected = [{"effect": e.effect, "joint": e.joint, **{k: v for k, v in t.items() if k != "significant"}}
                         for e, t, _, _ in results]
             break
-        ext, tst, f1, m1 = max(sig, key=lambda r: r[1]["score"])
+        best, periodic = comp.resolve_periodic(prep, best, results)
+        ext, tst, f1, m1 = best
         competition = _competition(ext, tst, results)
+        if periodic is not None:      # one speed level: ripple in position vs in time not identifiable
+            competition.update(periodic)
+            accepted.update((e, ext.joint) for e in comp.PERIODIC_PAIR)
+        if explained_away:
+            competition["explained_by_periodic_residual"] = explained_away
         model = m1
         fit = f1
         accepted.add((ext.effect, None if ext.shared else ext.joint))

@@ -1,0 +1,167 @@
+"""Competing explanations of one residual pattern (issue #16, item 2).
+
+Two checks that run before a candidate of :mod:`drake_est.diagnose.core` is accepted:
+
+* **Position ripple vs time-periodic disturbance.**  A ripple periodic in motor position with f cycles/rad
+  seen at speed v is a component at f v Hz; a disturbance periodic in time keeps its Hz at every speed.
+  What tells them apart is therefore the *frequency signature across speeds* (Ch. 10: an LPV component in
+  position keeps its cycles per rad).  When the log runs at one speed level (:func:`speed_level_ratio`
+  below :data:`ONE_SPEED_RATIO`) the two are not identifiable, whatever their held-out scores: the finding
+  is reported as "ambiguous between motor_position_ripple and time_periodic_disturbance" and the model
+  keeps the position ripple when it is significant (a function of the state, which a simulation and
+  another log can use), else the time-periodic one.  Both names are then closed for that joint.
+* **A speed law or a drift that only absorbs a periodic residual.**  Stribeck friction, an energy drift and
+  an abrupt change are smooth in speed or in time; on a log with a strong unmodeled periodic residual they
+  can win a round merely by absorbing part of it.  Such a candidate must stay significant on the held-out
+  data when the periodic structure of the current residual (:func:`periodic_nuisance`: the strongest
+  sinusoids in time and the ripple components in position, found on the training part) is in the model
+  as well: a partial F-test of the candidate given the periodic alternative.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.stats
+
+PERIODIC_PAIR = ("motor_position_ripple", "time_periodic_disturbance")
+#: speed levels: the ratio of the 90 % to the 10 % quantile of the mean |qd| over windows of a few periods
+#: (:func:`speed_level_ratio`); below this one speed level only (a ripple of f cycles/rad then sits at f v Hz within +-20 %
+#: of one frequency, which is what a time-periodic disturbance at one frequency also gives)
+ONE_SPEED_RATIO = 1.5
+#: candidates that are smooth in speed or time and must beat a periodic alternative (see module docstring)
+CONFOUNDABLE = ("stribeck", "energy_dependent_friction", "abrupt_change")
+#: sinusoids in time in the periodic nuisance of :func:`periodic_nuisance`
+NUISANCE_SINUSOIDS = 3
+
+
+def speed_level_ratio(jd, window_s: float = 1.0) -> float:
+    """q90 / q10 of the mean |qd| over consecutive windows of ``window_s`` seconds of the used rows
+    (1 = one speed level).  The window should hold a few periods of the periodic component in question:
+    within a period a ripple itself modulates the speed, which is not a second speed level."""
+    rows = jd.rows
+    t = jd.t[rows]
+    b = np.floor((t - t[0]) / max(window_s, 1e-9)).astype(int)
+    av = np.abs(jd.v[rows])
+    cuts = np.flatnonzero(np.diff(b)) + 1
+    means = np.array([np.mean(g) for g in np.split(av, cuts) if g.size >= 10])
+    if means.size < 2:
+        return 1.0
+    lo, hi = np.quantile(means, [0.1, 0.9])
+    return float(hi / max(lo, 1e-12))
+
+
+def periodic_window_s(ext, jd) -> float:
+    """Averaging window for :func:`speed_level_ratio` around a periodic candidate: three periods in time
+    (a ripple of f cycles/rad at the median speed v has its period 1 / (f v)), at least one second."""
+    ev = ext.evidence
+    if "frequency_hz" in ev:
+        f = float(ev["frequency_hz"])
+    else:
+        f = float(ev.get("frequency_per_arm_rad", 0.0)) * float(np.median(np.abs(jd.v[jd.rows])))
+    return max(1.0, 3.0 / f) if f > 0 else 1.0
+
+
+def one_speed_level(jd, window_s: float = 1.0) -> bool:
+    """True when position-periodic and time-periodic explanations cannot be told apart (one speed level)."""
+    return speed_level_ratio(jd, window_s) < ONE_SPEED_RATIO
+
+
+def resolve_periodic(prep, best, results):
+    """``(kept, info)`` for the round's winner ``best`` = (ext, test, fit, model) among ``results``.
+
+    ``info`` is None when nothing changes; else the competition fields of an ambiguous finding: the winner
+    was one of :data:`PERIODIC_PAIR` on a one-speed log.  ``kept`` is the position ripple's result when it
+    is significant, else ``best``."""
+    ext = best[0]
+    if ext.effect not in PERIODIC_PAIR or ext.shared:
+        return best, None
+    jd = prep.joints[ext.joint]
+    ratio = speed_level_ratio(jd, periodic_window_s(ext, jd))
+    if ratio >= ONE_SPEED_RATIO:
+        return best, None
+    partner = next(e for e in PERIODIC_PAIR if e != ext.effect)
+    other = [r for r in results if r[0].effect == partner and r[0].joint == ext.joint]
+    kept = best
+    if ext.effect != "motor_position_ripple" and other and other[0][1]["significant"]:
+        kept = other[0]
+    rival = other[0] if (other and kept is best) else (best if kept is not best else None)
+    info = {"ambiguous": True, "runner_up": partner if kept[0].effect != partner else ext.effect,
+            "runner_up_joint": int(ext.joint),
+            "reason": f"one speed level (window-mean speed ratio {ratio:.3g} < {ONE_SPEED_RATIO}): a ripple in "
+                      "position and a disturbance periodic in time give the same frequency",
+            "speed_level_ratio": ratio}
+    if rival is not None:
+        info["runner_up_score"] = float(rival[1]["score"])
+        info["runner_up_significant"] = bool(rival[1]["significant"])
+        info["margin"] = float(kept[1]["score"] - rival[1]["score"])
+    else:
+        info["runner_up_score"], info["runner_up_significant"], info["margin"] = None, False, None
+    return kept, info
+
+
+def _fit_rss(A, y, train, val, n_unpenalized):
+    from drake_est.diagnose.core import _ridge_lstsq
+    c = _ridge_lstsq(A[train], y[train], n_unpenalized)
+    e = y[val] - A[val] @ c
+    r = y[train] - A[train] @ c
+    return float(e @ e), r
+
+
+def periodic_nuisance(prep, model, fit, j):
+    """Columns (at the joint's used rows) of the periodic structure of the current residual of joint ``j``:
+    up to :data:`NUISANCE_SINUSOIDS` sinusoids in time (each found on the training residual left by the
+    previous ones, :func:`~drake_est.diagnose.detectors.time_periodic`) and the ripple components in position
+    (:func:`~drake_est.diagnose.detectors.ripple`).  None when there is none."""
+    import drake_est.diagnose.detectors as det
+    from drake_est.diagnose.core import _residual
+    jd = prep.joints[j]
+    r = _residual(prep, fit, j)
+    X = model.design(j)
+    shared = model.shared_exts()
+    if shared:
+        X = np.hstack([X] + [e.cols[j] for e in shared])
+    cols = []
+    rk = r
+    for _ in range(NUISANCE_SINUSOIDS):
+        e = det.time_periodic(jd, rk)
+        if e is None:
+            break
+        cols.append(e.cols[j])
+        A = np.hstack([X] + cols)
+        c, *_ = np.linalg.lstsq(A[jd.train], jd.y[jd.train], rcond=None)
+        rk = jd.y - A @ c
+    e = det.ripple(jd, r)
+    if e is not None:
+        cols.append(e.cols[j])
+    return np.hstack(cols) if cols else None
+
+
+def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None) -> dict:
+    """Partial held-out F-test of ``ext`` given the periodic nuisance of its joint (module docstring).
+
+    Returns the test dict (``significant``: the candidate still explains held-out variance beyond the
+    periodic alternative); ``{"significant": True, "skipped": ...}`` when it does not apply."""
+    from drake_est.diagnose.core import N_NOMINAL
+    if ext.effect not in CONFOUNDABLE or ext.shared:
+        return {"significant": True, "skipped": "not a smooth speed/time law"}
+    j = ext.joint
+    jd = prep.joints[j]
+    N = periodic_nuisance(prep, model, fit, j) if nuisance is None else nuisance
+    if N is None:
+        return {"significant": True, "skipped": "no periodic structure in the residual"}
+    X = model.design(j)
+    shared = model.shared_exts()
+    if shared:
+        X = np.hstack([X] + [e.cols[j] for e in shared])
+    A0 = np.hstack([X, N])
+    A1 = np.hstack([A0, ext.cols[j]])
+    rss0, _ = _fit_rss(A0, jd.y, jd.train, jd.val, N_NOMINAL)
+    rss1, _ = _fit_rss(A1, jd.y, jd.train, jd.val, N_NOMINAL)
+    n = int(jd.val.sum())
+    d = ext.n_params
+    F = ((rss0 - rss1) / d) / (rss1 / max(n - d, 1))
+    p = float(scipy.stats.f.sf(F, d, max(n - d, 1))) if F > 0 else 1.0
+    gain = 1.0 - np.sqrt(rss1 / rss0) if rss0 > 0 else 0.0
+    score = float(n * np.log(rss0 / max(rss1, 1e-300)) - 2 * d)
+    return {"F": float(F), "p_value": p, "rmse_reduction": float(gain), "score": score,
+            "nuisance_columns": int(N.shape[1]),
+            "significant": bool(p < alpha and gain >= min_gain and score > 0)}
