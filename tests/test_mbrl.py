@@ -173,3 +173,28 @@ def test_mbrl_noise_scale_is_validated_and_zero_noise_repeats_the_mean_rollout()
     r = mbrl(CartPoleTrueSystem(), model, cost, x0, 50, model="lti", iterations=1, noise_scale=0.0,
              lower=lo, upper=hi)
     assert r.rollout_costs[0] == r.costs[0]
+
+
+def test_variant_stats_first_iterations_and_seed_counts():
+    from drake_est.reproduce.mbrl import _variant_stats, first_within
+    J = 100.0
+    curves = np.array([[300, 200, 104, 101],      # within 5 % from iteration 3
+                       [300, 150, 120, 103],      # from iteration 4
+                       [300, 290, 280, 270]])     # never
+    st = _variant_stats(curves, J, 105.0)
+    assert st["seeds_within_5pct"] == 2 and st["n_seeds"] == 3
+    assert st["median_over_seeds_first_iteration_within_5pct"] == 4.0   # median of (3, 4, never)
+    assert st["first_iteration_median_within_5pct"] == first_within(np.median(curves, axis=0), 105.0) == 4
+    np.testing.assert_allclose(st["median_ratio"], np.median(curves, axis=0) / J)
+    st2 = _variant_stats(curves[[0, 2, 2]], J, 105.0)                     # most seeds never get there
+    assert st2["median_over_seeds_first_iteration_within_5pct"] is None and st2["seeds_within_5pct"] == 1
+
+
+@pytest.mark.slow
+def test_reproduce_mbrl_cartpole_tiny_runs_all_variants(tmp_path):
+    from drake_est.reproduce.mbrl import mbrl_cartpole
+    r = mbrl_cartpole(tmp_path, n_seeds=1, iterations=5, jobs=1)
+    assert set(r["variants"]) == {"ltv", "lti", "ltv-nn", "ltv-nn-pretrained"}
+    assert all(len(v["median_cost"]) == 5 for v in r["variants"].values())
+    assert (tmp_path / "mbrl_cartpole_fig11_1.png").stat().st_size > 10_000
+    assert r["wall_seconds"] > 0 and r["nn_prior"]["pretraining"]["gradient_steps"] == 6000

@@ -9,7 +9,12 @@
   the parameters, :func:`drake_est.identification.ltv.ltv_smoother` with ``order=2``; the affine term enters as a
   constant input) with lambda by maximum likelihood (:func:`ltv_select_lambda_ml`), on the last rollout;
   ``"lti"`` — one (A, B, c) by least squares on all rollouts so far; ``"true"`` — the exact model (optimal
-  control with the true model, the reference of Fig. 11.1);
+  control with the true model, the reference of Fig. 11.1); the two neural-network-prior variants of Sec. 11.2,
+  where the linearization [A_t B_t c_t] of a network x+ = g(x, u) + x (:class:`NetworkPrior`) along the last
+  rollout is the prior (7.15) of the LTV fit: ``"ltv-nn"`` — the network is refit on all rollouts every
+  iteration (warm start from the previous weights), prior covariance decaying as 1/iteration;
+  ``"ltv-nn-pretrained"`` — the network is trained once before learning starts on random-input identification
+  experiments (:func:`pretrain_network_prior`) and never updated, fixed prior covariance;
 * optimize: control-limited iLQR under the KL constraint to the last controller
   (:func:`drake_est.control.ilqr.ilqr_kl`, Eqs. (11.14)-(11.15)).
 
@@ -225,7 +230,7 @@ def pretrain_network_prior(n_rollouts=20, T=400, seed=0, steps=6000, h=0.01, l=1
 
 def mbrl(true_system, true_model, cost, x0, T, model="ltv", iterations=20, kl_step=400.0, sigma0=1.0,
          lower=-10.0, upper=10.0, seed=0, show_progress=False, kl_increase=2.0, kl_decrease=0.5, kl_max=1e5,
-         nn_prior_cov=1e-3, noise_scale=1.0, lams=None, pretrained=None, nn_sigma_e="ml", nn_steps=200, nn_first_steps=1000):
+         nn_prior_cov=1.0, noise_scale=1.0, lams=None, pretrained=None, nn_sigma_e="ml", nn_steps=200, nn_first_steps=1000):
     """Algorithm 7 on ``true_system`` (``.rollout(x0, T, policy)``), cost ``cost``, horizon ``T``.
 
     ``model="ltv-nn"``: the LTV fit with the prior of a network (:class:`NetworkPrior`) refit on all data every

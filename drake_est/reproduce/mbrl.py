@@ -82,7 +82,7 @@ def _variant_stats(curves, J_opt, tol):
 
 
 def mbrl_cartpole(out_dir, quick=False, seed=0, n_seeds=None, iterations=20, kl_step=400.0, jobs=None,
-                  nn_variants=True, noise_scale=0.25, lam_grid=None, nn_prior_cov=10.0,
+                  nn_variants=True, noise_scale=0.25, lam_grid=None, nn_prior_cov=1.0,
                   nn_pretrained_prior_cov=10.0, **kw):
     """Fig. 11.1 / 11.2: cost per learning iteration (median over seeds) for true-model DDP, LTV, LTI and the
     two NN-prior variants (``nn_variants``; same seeds).
