@@ -6,5 +6,7 @@ kinematics and a compliance model) with laser stripes ahead of the tool, and its
 * :mod:`~drake_est.seam.simulate` -- scenario (IK path, process force, compliance, kinematic errors) and the
   step-by-step loop the Drake Diagram (:mod:`drake_est.systems.seam`) reproduces;
 * :mod:`~drake_est.seam.analysis` -- ``run_tracking`` (``drake-est track``), heat map (Fig. 14.5), sensor
-  study (Fig. 14.8), parameter significance (Fig. 14.6), Meshcat replay.
+  study (Fig. 14.8), parameter significance (Fig. 14.6), the animated Meshcat replay ``seam.html``;
+* :mod:`~drake_est.seam.viz` -- what the replay and the live Meshcat draw (seam, laser stripes, tool,
+  estimate, particle cloud).
 """
