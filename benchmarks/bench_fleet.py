@@ -30,7 +30,6 @@ import time
 from pathlib import Path
 
 
-
 def _quiet_single_thread_env():
     """Single-threaded BLAS (inherited by the worker processes) and no progress bars; set before numpy
     or drake_est is imported (this module imports them only inside functions)."""
