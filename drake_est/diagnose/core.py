@@ -23,6 +23,7 @@ import scipy.stats
 import drake_est.diagnose.competition as comp
 import drake_est.diagnose.detectors as det
 from drake_est.diagnose.quantization import torque_step  # noqa: F401  (re-exported)
+from drake_est.diagnose.multilog import log_ids, per_log_offsets
 from drake_est.diagnose.nominal import OUTLIER_MAD, block_index, nominal_columns, nominal_names, prepare
 from drake_est.metrics import metrics_table
 from drake_est.regression import ridge_solve
@@ -30,6 +31,9 @@ from drake_est.regression import ridge_solve
 ALPHA = 1e-4          # significance level of the held-out F-test
 MIN_GAIN = 0.02       # minimum relative reduction of the held-out RMSE of the affected joint(s)
 MAX_FINDINGS = 6
+#: periodic components the ripple candidate may hold (a cogging has several harmonics, e.g. 7, 14, 28 and 36
+#: per revolution on the ODrive motor; weak ones are dropped by the detector)
+RIPPLE_COMPONENTS = 4
 #: a finding whose held-out score (log-likelihood gain minus AIC penalty) beats a significant competing
 #: explanation of the same joint(s) by less than this is reported "ambiguous between A and B"
 AMBIGUITY_MARGIN = 10.0
@@ -42,6 +46,7 @@ class Fit:
     shared: dict          # effect -> shared coefficients
     rss_val: dict         # joint -> validation RSS
     n_params: int
+    per_log: dict = field(default_factory=dict)   # joint -> {log: [dkv, dkc]} (several logs, multilog.py)
 
 
 N_NOMINAL = 2          # nominal columns per joint [qd, sign(qd)], never penalized
@@ -125,10 +130,14 @@ class Model:
                 shared_coef[e.effect] = c[i:i + e.n_params]
                 i += e.n_params
             n_params = P
+        per_log = {}
         for j, jd in prep.joints.items():
+            ids = log_ids(prep, jd)
+            if ids is not None:     # several logs: per-log Coulomb/viscous offsets (temperature), multilog.py
+                pred[j], per_log[j] = per_log_offsets(jd, ids, pred[j])
             e = (jd.y - pred[j])[jd.val]
             rss[j] = float(e @ e)
-        return Fit(pred, coef, shared_coef, rss, n_params)
+        return Fit(pred, coef, shared_coef, rss, n_params, per_log)
 
 
 def _val_metrics(prep, fit, joints=None):
@@ -174,7 +183,7 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             A = np.hstack([X, C])
             c, *_ = np.linalg.lstsq(A[tr], y[tr], rcond=None)
             e = y[tr] - A[tr] @ c
-            return float(e @ e), float(c[-1])
+            return float(e @ e), c[X.shape[1]:]
 
         def have(effect, j=j):
             return (effect, j) in accepted
@@ -186,7 +195,7 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
         if prep.robot is None and not have("position_dependent_load"):
             out.append(det.position_load(jd, r, fit_inner))
         if not have("motor_position_ripple"):
-            out.append(det.ripple(jd, r))
+            out.append(det.ripple(jd, r, n_components=RIPPLE_COMPONENTS))
         if not have("energy_dependent_friction"):
             cj = fit.coef[j]
             names = nominal_names(prep.robot_kind)

@@ -12,7 +12,7 @@ effect                          columns                                         
 ==============================  ==============================================  ============
 position_dependent_friction     sign(qd) phi_k(q), Gaussian kernels in arm q    (9.13)-(9.16)
 motor_position_ripple           LPV periodic components in q, amplitude(qd)     Ch. 10
-energy_dependent_friction       sign(qd) E, E = k_e/(tau_e s + 1) |F qd|        (9.21)-(9.24), Alg. 6
+energy_dependent_friction       [sign(qd), qd] E, E = 1/(tau_e s + 1) |F qd|   (9.21)-(9.29), Alg. 6
 asymmetric_coulomb              1[qd < 0] (a different Coulomb level)           (9.3)
 gear_coupling                   qd_i, sign(qd_i) of the coupled joints i        (9.12)
 payload                         ID with 1 kg at the flange (4 COM offsets)      rigid body
@@ -217,16 +217,19 @@ def energy(jd, r, friction_full, fit_train, n_iter=2):
         best = None
         for tau in taus:
             E = unit_energy(t, W, tau)
-            C = (_sgn(v) * E)[jd.rows][:, None]
+            # LPV form (9.29): k_c(E) and k_v(E), both linear in E (the Coulomb-only form (9.22) leaves the
+            # viscous drift of a warming joint to be mistaken for another effect, e.g. an abrupt change)
+            C = np.column_stack([_sgn(v) * E, v * E])[jd.rows]
             err, coef = fit_train(C)
             if best is None or err < best[0]:
                 best = (err, tau, C, coef, E)
         # fixed-point update of the friction power with the fitted energy term (Algorithm 6)
-        F = friction_full + best[3] * _sgn(v) * best[4]
+        F = friction_full + (best[3][0] * _sgn(v) + best[3][1] * v) * best[4]
     err, tau, C, coef, E = best
-    spec = {"effect": "energy_dependent_friction", "tau_e": float(tau)}
-    ev = {"time_constant_s": float(tau), "gain_k_e": float(coef), "duration_s": T}
-    ext = Extension("energy_dependent_friction", jd.joint, {jd.joint: C}, ["k_e"], spec, ev)
+    spec = {"effect": "energy_dependent_friction", "tau_e": float(tau), "viscous": True}
+    ev = {"time_constant_s": float(tau), "gain_k_e": float(coef[0]), "gain_k_e_viscous": float(coef[1]),
+          "duration_s": T}
+    ext = Extension("energy_dependent_friction", jd.joint, {jd.joint: C}, ["k_e", "k_e_viscous"], spec, ev)
     ext.spec["_W_source"] = "current friction estimate"
     ext.obj = E
     return ext

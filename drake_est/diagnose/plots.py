@@ -60,6 +60,8 @@ def write_plots(rep, out) -> list:
               "acceleration": lambda jd, rows: jd.a[rows], "time": lambda jd, rows: jd.t[rows],
               "time_correlation": lambda jd, rows: jd.t[rows],
               "acceleration_excluded_samples": lambda jd, rows: jd.a[rows],
+              "jerk_excluded_samples": lambda jd, rows: np.gradient(jd.a, jd.t)[rows],
+              "time_shift_torque_vs_position": lambda jd, rows: np.gradient(jd.a, jd.t)[rows],
               "motor_position": lambda jd, rows: np.mod(jd.q[rows] * (jd.gear_ratio or 1.0), 2 * np.pi)}
         U = res.unexplained[:4]
         fig, axes = plt.subplots(len(U), 1, figsize=(10, 3.0 * len(U)), squeeze=False)

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_est.diagnose.nominal import n_blocks_for, nominal_names
+from drake_est.diagnose.multilog import across_logs_evidence, per_log_table
 
 EFFECT_TEXT = {
     "position_dependent_friction": "friction that depends on the arm position (Eq. 9.16): a basis-function expansion in "
@@ -101,6 +102,8 @@ def effect_parameters(result, ext, model, fit) -> dict:
         d["n_coefficients"] = int(c.size)
     elif ext.effect == "energy_dependent_friction":
         d = {"time_constant_s": ext.spec["tau_e"], "gain_k_e": float(c[0]), "kc": kc, "kv": kv}
+        if c.size > 1:    # (9.29): the viscous level drifts with E as well
+            d["gain_k_e_viscous"] = float(c[1])
     elif ext.effect == "abrupt_change":
         d = {"t_change_s": ext.spec["t_change"], "kv_before": kv, "kc_before": kc, "kv_after": kv + c[0],
              "kc_after": kc + c[1]}
@@ -155,7 +158,9 @@ class DiagnosisReport:
                 "excluded": {str(j): {k: v for k, v in jd.counts.items() if k not in ("thresholds", "inertia")}
                              for j, jd in prep.joints.items()},
                 "selection": {str(j): jd.counts["thresholds"] for j, jd in prep.joints.items()},
-                "split": f"alternating time blocks ({n_blocks_for(log.duration)}): even blocks train, odd blocks validate",
+                "split": (f"whole logs ({int(log.meta.get('n_logs', 0))}): odd-numbered logs (1, 3, ...) train, even-numbered "
+                          "ones validate; per-log Coulomb/viscous offsets" if "log_index" in (log.channels or {}) else
+                          f"alternating time blocks ({n_blocks_for(log.duration)}): even blocks train, odd blocks validate"),
                 "validation_samples": {str(j): int(jd.val.sum()) for j, jd in prep.joints.items()},
                 "torque_unit": torque_unit(log)}
         if prep.meta.get("joints_held_at_zero"):
@@ -194,6 +199,9 @@ class DiagnosisReport:
                 f["ambiguous_between"] = [s.ext.effect, s.competition["runner_up"]]
             if s.ext.shared:
                 f["joints"] = [int(j) for j in js]
+            across = across_logs_evidence(prep, s.ext)
+            if across is not None:
+                f["across_logs"] = across
             prev[tuple(js)] = s.validation["rmse"]
             findings.append(f)
         final = {"effects": self.effects, "validation": res.final_fit and _final_val(res),
@@ -208,6 +216,7 @@ class DiagnosisReport:
                "next_experiment": next_experiments(prep, res.steps, float(log.duration)),
                "not_found": sorted([{k: v for k, v in r.items()} for r in res.rejected],
                                    key=lambda r: -r["score"])[:8],
+               "logs": per_log_table(prep, res),
                "settings": {"alpha": res.timing.get("alpha"), "min_rmse_reduction": res.timing.get("min_gain")},
                "timing_s": {k: v for k, v in res.timing.items() if k.endswith("_s")}}
         if self.simulation is not None:
@@ -260,6 +269,9 @@ class DiagnosisReport:
                 extra = f", tau_e = {ev['time_constant_s']:.4g} s"
             lines.append(f"FOUND {f['effect']} (joint {f['joint']}{extra}): p = {ev['p_value']:.2g}, held-out RMSE "
                          f"{f['validation']['rmse']:.4g} {u}, gain x{f['gain']['rmse_ratio']:.3g}")
+        for lg in d.get("logs", []):
+            lines.append(f"  log {lg['log']} ({lg['role']}, joint {lg['joint']}) {lg['file']}: RMSE {lg['nominal_rmse']:.4g} -> "
+                         f"{lg['final_rmse']:.4g} {u} ({100 * lg['rmse_reduction']:.0f} % lower)")
         fv = d["final"]["validation"]
         named = ", ".join(f"{f['effect']} (joint {f['joint']})" for f in d["findings"]) or "(nominal)"
         lines.append(f"final model {named}: held-out RMSE {fv['rmse']:.4g} {u}, "
@@ -332,6 +344,12 @@ def markdown(d: dict) -> str:
     L += ["## The extended model", "",
           f"Effects: {', '.join(d['final']['effects']) or 'none (nominal)'}; held-out RMSE **{fv['rmse']:.4g} {u}** "
           f"(nominal {nv['rmse']:.4g}), gain x{d['final']['gain']['rmse_ratio']:.3g}."]
+    if d.get("logs"):
+        L += ["", "## Logs", "", "| log | file | role | joint | samples | nominal RMSE | final RMSE | reduction |",
+              "|---|---|---|---|---|---|---|---|"]
+        for lg in d["logs"]:
+            L.append(f"| {lg['log']} | {lg['file']} | {lg['role']} | {lg['joint']} | {lg['samples']} | "
+                     f"{lg['nominal_rmse']:.4g} | {lg['final_rmse']:.4g} | {100 * lg['rmse_reduction']:.1f} % |")
     L += ["", "## Unexplained", ""]
     if not d.get("unexplained"):
         L.append("The final held-out residual shows no remaining structure (dependence on position, velocity, "

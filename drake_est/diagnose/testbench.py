@@ -44,7 +44,9 @@ def _velocity_profile(rng, t, levels, q_lo, q_hi, ramp):
     # jerk-limited: a moving average over 0.25 s (smooth corners, as a real trajectory generator gives)
     m = max(1, int(round(0.25 / h)))
     v = np.convolve(np.concatenate([np.zeros(m), v, np.full(m, v[-1])]), np.ones(m) / m, "same")[m:-m]
-    q = q_lo + 0.05 * (q_hi - q_lo) + np.cumsum(v) * h
+    # trapezoidal integration: a plain cumulative sum would put q half a sample ahead of v (and of the
+    # torque), a built-in delay of h/2 between torque and position samples
+    q = q_lo + 0.05 * (q_hi - q_lo) + np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]))]) * h
     return q, v
 
 

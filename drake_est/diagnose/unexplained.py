@@ -8,6 +8,9 @@ a fixed family-wise false-alarm rate (Bonferroni over the tests):
   F = (SS_between / (B - 1)) / (SS_within / (n - B));
 * whiteness over time: regression of the residual on its ``N_LAGS`` previous held-out samples
   (consecutive samples of the same validation block only), F-test of the lag coefficients.
+* on the moving but accelerating samples that the selection (9.9) leaves out (generic axes): ANOVA over
+  jerk of the residual after an offset, the inertia and the derivative-filter error (snap) are regressed
+  out (a delay between torque and position samples, backlash).
 
 A structure is reported when its p-value is below ``ALPHA_UNEXPLAINED / n_tests`` *and* it holds at least
 ``MIN_SHARE`` of the residual variance (between-bin or predictable share).  No cause is named for it.
@@ -26,6 +29,8 @@ MIN_SHARE = 0.03
 #: filter lag at jerks): a structure there must hold this much of the residual variance
 MIN_SHARE_EXCLUDED = 0.08
 N_BINS = 20
+#: fewest accelerating samples for the left-out-sample tests (10 per ANOVA bin)
+MIN_EXCLUDED_SAMPLES = 200
 N_LAGS = 5
 #: a thermal (energy) drift with a time constant of about an hour needs a log this long [s] to be testable
 THERMAL_MIN_DURATION_S = 3600.0
@@ -74,13 +79,81 @@ def _whiteness(e, block, n_lags=N_LAGS):
     return p, 1.0 - rss1 / max(rss0, 1e-300), float(c[0])
 
 
+def _friction_at(model, fit, jd, j, idx):
+    """The final model's friction (nominal + own extensions) at samples ``idx`` of joint j (None when an
+    extension cannot be evaluated there)."""
+    from drake_est.identification.friction.extensions import columns_at
+    q, v, t = jd.q[idx], jd.v[idx], jd.t[idx]
+    blocks = [np.column_stack([v, np.sign(v)])]
+    for e in model.own(j):
+        if e.effect in ("gear_coupling", "payload"):
+            return None
+        E = None if e.obj is None or e.effect != "energy_dependent_friction" else np.asarray(e.obj)[idx]
+        blocks.append(columns_at(e.spec, q, v, t, E_unit=E))
+    return np.hstack(blocks) @ fit.coef[j]
+
+
+def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
+    """Is the measured torque the model's torque at another time?  On all moving samples, the residual
+    e = tau - M is regressed on the odd difference D_k = (M(t - k h) - M(t + k h)) / 2 ~ -k h dM/dt for
+    shifts k = 1 .. K (K h <= ``max_shift_s``), after an offset, the inertia (qdd) and the derivative-filter
+    error (snap) are regressed out.  A delay d between torque and position samples leaves
+    e = M(t - d) - M(t), i.e. mostly the k = d/h column; a zero-phase derivative filter leaves an even error
+    that the odd difference does not pick up.  Returns (p, share, shift_s, var_e) for the best k (p
+    Bonferroni-corrected over the K shifts tried) or None; generic axes only."""
+    jd = prep.joints[j]
+    if prep.robot is not None:
+        return None
+    model = getattr(fit, "_model", None)
+    if model is None or model.shared_exts():
+        return None
+    N = jd.t.size
+    h = float(np.median(np.diff(jd.t)))
+    K = int(max(1, min(20, round(max_shift_s / h))))
+    thr = jd.counts["thresholds"]
+    idx = np.flatnonzero(np.abs(jd.v) > thr["v_min"])
+    idx = idx[(idx >= K) & (idx < N - K)]
+    if idx.size < MIN_EXCLUDED_SAMPLES:
+        return None
+    idx = idx[:: max(1, idx.size // n_max)]
+    allk = np.unique(np.concatenate([idx + k for k in range(-K, K + 1)]))
+    Mf = _friction_at(model, fit, jd, j, allk)
+    if Mf is None:
+        return None
+    M = np.full(N, np.nan)
+    M[allk] = jd.rb[allk] + Mf
+    e = jd.tau[idx] - M[idx]
+    jerk = np.gradient(jd.a, jd.t)
+    snap = np.gradient(jerk, jd.t)[idx]
+    Nu = np.column_stack([np.ones(idx.size), jd.a[idx], snap])
+    P = lambda x: x - Nu @ np.linalg.lstsq(Nu, x, rcond=None)[0]   # noqa: E731
+    e = P(e)
+    ss = float(e @ e)
+    best = None
+    for k in range(1, K + 1):
+        D = P(0.5 * (M[idx - k] - M[idx + k]))
+        dd = float(D @ D)
+        if dd <= 0:
+            continue
+        gain = float(D @ e) ** 2 / dd
+        if best is None or gain > best[0]:
+            best = (gain, k)
+    if best is None or ss <= 0:
+        return None
+    gain, k = best
+    n = idx.size
+    F = gain / max((ss - gain) / max(n - 4, 1), 1e-300)
+    p = min(1.0, K * float(scipy.stats.f.sf(F, 1, max(n - 4, 1))))
+    return p, gain / ss, k * h, float(ss / n)
+
+
 def _excluded_moving(prep, fit, j, n_max=20000):
-    """ANOVA over acceleration of the final model's residual on the *moving but accelerating* samples that
+    """ANOVA over jerk of the final model's residual on the *moving but accelerating* samples that
     the data selection (9.9) left out (a delay between torque and position, backlash or an inertia error
     shows there first).  The final model is evaluated at those samples through the same columns
     (:func:`~drake_est.identification.friction.extensions.columns_at`); None when an extension cannot be
     evaluated there (gear coupling, payload), for robot models (inverse dynamics only at the selected rows)
-    or when too few such samples exist."""
+    or when too few such samples exist; else {variable: (p, share, where) or None}."""
     from drake_est.identification.friction.extensions import columns_at
     jd = prep.joints[j]
     if prep.robot is not None:
@@ -90,20 +163,26 @@ def _excluded_moving(prep, fit, j, n_max=20000):
         return None
     thr = jd.counts["thresholds"]
     idx = np.flatnonzero((np.abs(jd.v) > thr["v_min"]) & (np.abs(jd.a) > thr["a_max"]))
-    if idx.size < 500:
+    if idx.size < MIN_EXCLUDED_SAMPLES:
         return None
     idx = idx[:: max(1, idx.size // n_max)]
-    q, v, t = jd.q[idx], jd.v[idx], jd.t[idx]
-    blocks = [np.column_stack([v, np.sign(v)])]
-    for e in model.own(j):
-        if e.effect in ("gear_coupling", "payload"):
-            return None
-        E = None if e.obj is None or e.effect != "energy_dependent_friction" else np.asarray(e.obj)[idx]
-        blocks.append(columns_at(e.spec, q, v, t, E_unit=E))
-    pred = np.hstack(blocks) @ fit.coef[j]
+    pred = _friction_at(model, fit, jd, j, idx)
+    if pred is None:
+        return None
     e = (jd.tau - jd.rb)[idx] - pred
-    e = e - e.mean()
-    return _anova(jd.a[idx], e)
+    jerk_all = np.gradient(jd.a, jd.t)
+    snap = np.gradient(jerk_all, jd.t)[idx]
+    jerk = jerk_all[idx]
+    # nuisance, not evidence: an offset, an error of the identified inertia (qdd) and the error of the
+    # smoothed second derivative (a Savitzky-Golay qdd errs by about c h^2 d^4q/dt^4, i.e. the snap)
+    N = np.column_stack([np.ones(idx.size), jd.a[idx], snap])
+    e = e - N @ np.linalg.lstsq(N, e, rcond=None)[0]
+    # jerk: a delay d between torque and position samples leaves -d dtau/dt = -d (J jerk + kv qdd + ...);
+    # its qdd part is absorbed by the inertia, the jerk part is not (no axis model depends on jerk); backlash
+    # (torque missing while the motor crosses the dead band after a reversal) shows there too
+    r = _anova(jerk, e)
+    # the quantization guard compares with the variance of this residual (not of the selected samples')
+    return {"jerk_excluded_samples": None if r is None else (*r, float(np.var(e)))}
 
 
 def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) -> list:
@@ -125,19 +204,24 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
         r = _whiteness(e, block_index(jd.t, rows))
         if r is not None:
             tests.append((j, "time_correlation", r))
-        r = _excluded_moving(prep, fit, j)
+        for name, r in (_excluded_moving(prep, fit, j) or {}).items():
+            if r is not None:
+                tests.append((j, name, r))
+        r = _time_shift(prep, fit, j)
         if r is not None:
-            tests.append((j, "acceleration_excluded_samples", r))
+            tests.append((j, "time_shift_torque_vs_position", r))
     n_tests = max(len(tests), 1)
     from drake_est.diagnose.quantization import torque_step
     steps = {j: prep.meta.get("tau_step", {}).get(j, None) for j in prep.joints}
     steps = {j: (torque_step(prep.joints[j].tau) if s is None else s) for j, s in steps.items()}
     var = {j: float(np.var((jd.y - fit.pred[j])[jd.val])) for j, jd in prep.joints.items()}
-    for j, name, (p, share, where) in tests:
+    for j, name, r in tests:
+        p, share, where = r[:3]
+        v_e = r[3] if len(r) > 3 else var[j]
         # a quantized torque leaves a deterministic error below one step that follows the torque level
-        if steps[j] > 0 and np.sqrt(share * var[j]) < steps[j]:
+        if steps[j] > 0 and np.sqrt(share * v_e) < steps[j]:
             continue
-        need = max(min_share, MIN_SHARE_EXCLUDED) if name.endswith("_excluded_samples") else min_share
+        need = max(min_share, MIN_SHARE_EXCLUDED) if name.endswith(("_excluded_samples", "_vs_position")) else min_share
         if p < alpha / n_tests and share >= need:
             d = {"joint": int(j), "variable": name, "p_value": p, "share_of_residual_variance": float(share),
                  "samples": "accelerating samples left out by (9.9)" if name.endswith("_excluded_samples")
@@ -145,6 +229,10 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
                  "test": "autocorrelation F-test" if name == "time_correlation" else "ANOVA over 20 quantile bins"}
             if name == "time_correlation":
                 d["lag1_coefficient"] = where
+            elif name == "time_shift_torque_vs_position":
+                d["test"] = "F-test of the odd model-torque difference (torque = model at a shifted time)"
+                d["samples"] = "all moving samples"
+                d["best_shift_s"] = where
             else:
                 d["largest_deviation_bin_upper_edge"] = where
             out.append(d)

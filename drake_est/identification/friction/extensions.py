@@ -96,7 +96,10 @@ def columns_at(spec, q, v, t, others=None, E_unit=None, sign=None):
     if kind == "gear_coupling":
         return np.column_stack([c for i in spec["coupled_joints"] for c in (others[i], sgn(others[i]))])
     if kind == "energy_dependent_friction":
-        return (s * np.asarray(E_unit, float))[:, None]
+        E = np.asarray(E_unit, float)
+        if spec.get("viscous"):       # (9.29): the energy changes the viscous as well as the Coulomb level
+            return np.column_stack([s * E, v * E])
+        return (s * E)[:, None]
     if kind == "motor_position_ripple":
         ev = spec.get("_pc")
         if ev is None:
@@ -173,7 +176,8 @@ class ExtensionTerm(Term):
         return C
 
     def names(self):
-        n = {"asymmetric_coulomb": 1, "energy_dependent_friction": 1, "abrupt_change": 2, "stribeck": 1,
+        n = {"asymmetric_coulomb": 1, "energy_dependent_friction": 2 if self.spec.get("viscous") else 1,
+             "abrupt_change": 2, "stribeck": 1,
              "time_periodic_disturbance": 2 * len(self.spec.get("frequencies_hz", [0]))}.get(self.effect)
         if n is None:
             if self.effect in ("position_dependent_friction", "position_dependent_load"):
