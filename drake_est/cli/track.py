@@ -20,7 +20,7 @@ def register(sub):
                         "afterwards")
     p.add_argument("--realtime-rate", type=float, default=None,
                    help="run the simulation at this multiple of real time (e.g. 1 to watch it live; default: as "
-                        "fast as possible)")
+                        "fast as possible; track.json's realtime_factor then measures the slowed run)")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=run)
 
