@@ -29,7 +29,7 @@ def short_run():
 
 
 def _commands(html: str) -> list:
-    """The Meshcat commands embedded in a StaticHtml page (msgpack, base64)."""
+    """The Meshcat commands embedded in a StaticHtml page (msgpack, base64; msgpack comes with dask[distributed])."""
     import msgpack
     blobs = re.findall(r'fetch\("data:application/octet-binary;base64,([A-Za-z0-9+/=]+)"\)', html)
     return [msgpack.unpackb(base64.b64decode(b), raw=False, strict_map_key=False,
@@ -57,7 +57,6 @@ def _visible_at(keys, frame):
 
 
 def test_replay_animates_lasers_particles_and_robot(short_run, tmp_path):
-    pytest.importorskip("msgpack")
     from pydrake.geometry import Meshcat
     scn, cfg, res = short_run
     meshcat = Meshcat()
@@ -141,7 +140,6 @@ def _packed_transform(meshcat, path):
 
 
 def test_live_meshcat_in_the_diagram_draws_and_does_not_change_the_run():
-    pytest.importorskip("msgpack")
     from pydrake.geometry import Meshcat
     from pydrake.systems.analysis import Simulator
     from drake_est.seam.filter import sensor_mount
