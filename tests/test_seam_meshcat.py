@@ -79,7 +79,8 @@ def test_replay_animates_lasers_particles_and_robot(short_run, tmp_path):
     # robot links are animated too
     assert sum(p.startswith("/drake/visualizer") for p in tracks) >= 6
     # particle snapshots: exactly one visible at every animation frame, and every snapshot shown at some frame
-    snaps = sorted((p for p in tracks if re.fullmatch(rf"{base}/particles/\d+", p)), key=lambda p: int(p.rsplit("/", 1)[1]))
+    snaps = sorted((p for p in tracks if re.fullmatch(rf"{base}/particles/\d+", p)),
+                   key=lambda p: int(p.rsplit("/", 1)[1]))
     assert 2 <= len(snaps) <= 6
     frames = sorted({f for _, f_v in tracks[f"{base}/tool"].items() for f, _ in f_v})
     shown = np.array([[_visible_at(tracks[p][".visible"], f) for p in snaps] for f in frames])
