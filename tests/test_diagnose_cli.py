@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -103,3 +104,49 @@ def test_confusion_matrix_benchmark(tmp_path):
     assert len(rows) >= 60
     errors = [(r["class"], r["seed"], r["top"]) for r in rows if not r["ok"]]
     assert not errors, errors
+
+
+# ---------------------------------------------------------------- issue 16, item 7: units
+
+
+def _sine_csv(path, t, q, tau):
+    path.write_text("t,q1,tau1\n" + "\n".join(f"{float(a)!r},{float(b)!r},{float(c)!r}" for a, b, c in zip(t, q, tau)))
+    return str(path)
+
+
+def test_millisecond_time_stamps_exit_2(tmp_path, capsys):
+    t = np.arange(0, 20000, 10)                      # 100 Hz written in ms (integers)
+    q = np.sin(2 * np.pi * t / 4000.0)
+    p = _sine_csv(tmp_path / "ms.csv", t, q, 0.5 * np.sign(np.cos(2 * np.pi * t / 4000.0)))
+    assert main(["diagnose", p]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "milliseconds" in err and len(err.splitlines()) == 1
+    assert main(["check", p]) == 2
+    assert "milliseconds" in capsys.readouterr().err
+
+
+def test_check_without_robot_spots_degrees(tmp_path, capsys):
+    t = np.arange(0, 20, 0.01)
+    q_deg = 90.0 * np.sin(2 * np.pi * t / 5.0)       # +-90 degrees written as numbers in degrees
+    p = _sine_csv(tmp_path / "deg.csv", t, q_deg, np.cos(t))
+    assert main(["check", p]) == 0
+    err = capsys.readouterr().err
+    assert "degrees" in err and "joint 1" in err
+    q_rad = np.deg2rad(q_deg)
+    p = _sine_csv(tmp_path / "rad.csv", t, q_rad, np.cos(t))
+    assert main(["check", p]) == 0
+    assert "degrees" not in capsys.readouterr().err
+
+
+def test_torque_unit_follows_axis_type(tmp_path):
+    from drake_est.diagnose import diagnose
+    from drake_est.diagnose.testbench import generate
+    log, _ = generate({}, seed=3, duration=60, sample_rate=50, prismatic=True)
+    rep = diagnose(log, robot="generic", simulate=False)
+    assert rep.to_dict()["data"]["torque_unit"] == "N"
+    out = rep.write(tmp_path / "lin")
+    md = (out / "report.md").read_text() if out.is_dir() else (tmp_path / "lin" / "report.md").read_text()
+    assert "N m" not in md
+    assert re.search(r"RMSE of \*\*[-0-9.e]+ N\*\*", md)
+    log, _ = generate({}, seed=3, duration=60, sample_rate=50)
+    assert diagnose(log, robot="generic", simulate=False).to_dict()["data"]["torque_unit"] == "N m"
