@@ -83,6 +83,100 @@ def _add_payload(plant: MultibodyPlant, model, flange_frame: str, mass: float, c
     plant.WeldFrames(plant.GetFrameByName(flange_frame, model), body.body_frame(), RigidTransform(np.asarray(com, float)))
 
 
+#: numeric URDF attributes checked before Drake parses a file: {element: {attribute: number of values}}
+_URDF_NUMBERS = {"mass": {"value": 1}, "inertia": {k: 1 for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")},
+                 "origin": {"xyz": 3, "rpy": 3}, "axis": {"xyz": 3},
+                 "limit": {"lower": 1, "upper": 1, "velocity": 1, "effort": 1},
+                 "dynamics": {"damping": 1, "friction": 1}}
+URDF_MAX_ABS = 1e9   # no robot has a length, mass, inertia or limit beyond this in SI units
+
+
+def validate_urdf(path) -> None:
+    """Check a URDF's numbers before Drake reads it, with one ``DataError`` line naming the link/joint.
+
+    Drake aborts the whole process (not an exception) on some inconsistent values (a lower position
+    limit above the upper one, a negative velocity limit) and accepts non-physical ones silently (negative
+    mass, an inertia that violates the triangle inequality); both are refused here.  Files whose root is
+    not ``<robot>`` (SDF) are left to Drake's parser."""
+    import xml.etree.ElementTree as ET
+
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as err:
+        raise DataError(f"robot model {path} is not valid XML ({err})") from None
+    except (UnicodeDecodeError, ValueError) as err:
+        raise DataError(f"robot model {path} is not a readable XML file ({type(err).__name__})") from None
+    if root.tag != "robot":
+        return
+    for owner in list(root.iter("link")) + list(root.iter("joint")):
+        if owner.get("name") is None and owner.find("*") is None:
+            continue          # <joint name=...> references inside <transmission> etc. carry no numbers
+        who = f"{owner.tag} '{owner.get('name', '?')}'"
+        _check_single(path, who, owner, ("inertial",) if owner.tag == "link" else
+                      ("parent", "child", "axis", "limit", "origin", "dynamics"))
+        for inertial in owner.findall("inertial"):
+            _check_single(path, who, inertial, ("mass", "inertia", "origin"))
+        vals = {}
+        for el in owner.iter():
+            spec = _URDF_NUMBERS.get(el.tag, {})
+            for attr, count in spec.items():
+                raw = el.get(attr)
+                if raw is None:
+                    continue
+                try:
+                    v = np.array([float(x) for x in raw.split()], dtype=float)
+                except ValueError:
+                    raise DataError(f"robot model {path}: {who}: <{el.tag} {attr}=\"{raw[:40]}\"> is not a number") \
+                        from None
+                if v.size != count:
+                    raise DataError(f"robot model {path}: {who}: <{el.tag} {attr}=\"{raw[:40]}\"> needs {count} "
+                                    f"number(s), has {v.size}")
+                if not np.all(np.isfinite(v)) or np.any(np.abs(v) > URDF_MAX_ABS):
+                    raise DataError(f"robot model {path}: {who}: <{el.tag} {attr}=\"{raw[:40]}\"> must be finite "
+                                    f"and within +-{URDF_MAX_ABS:.0e}")
+                vals[(el.tag, attr)] = v
+        _check_urdf_physics(path, who, vals)
+
+
+def _check_single(path, who, el, tags):
+    """A second <mass>, <limit>, ... would be ignored by Drake without a word: refuse it."""
+    for tag in tags:
+        n = len(el.findall(tag))
+        if n > 1:
+            raise DataError(f"robot model {path}: {who}: {n} <{tag}> elements in <{el.tag}>; one is allowed")
+
+
+def _check_urdf_physics(path, who, vals):
+    get = lambda tag, attr, default=None: (float(vals[(tag, attr)][0]) if (tag, attr) in vals else default)  # noqa: E731
+    m = get("mass", "value")
+    if m is not None and m < 0:
+        raise DataError(f"robot model {path}: {who}: mass {m:g} kg is negative")
+    if any(("inertia", k) in vals for k in ("ixx", "iyy", "izz")):
+        I = np.array([[get("inertia", "ixx", 0.0), get("inertia", "ixy", 0.0), get("inertia", "ixz", 0.0)],
+                      [get("inertia", "ixy", 0.0), get("inertia", "iyy", 0.0), get("inertia", "iyz", 0.0)],
+                      [get("inertia", "ixz", 0.0), get("inertia", "iyz", 0.0), get("inertia", "izz", 0.0)]])
+        ev = np.linalg.eigvalsh(I)
+        tol = 1e-9 * max(float(np.sum(np.abs(ev))), 1e-300)
+        if ev[0] < -tol or ev[0] + ev[1] < ev[2] - tol:
+            raise DataError(f"robot model {path}: {who}: the rotational inertia is not physical (principal moments "
+                            f"{', '.join(f'{e:.3g}' for e in ev)} kg m^2: negative or violating the triangle "
+                            "inequality)")
+    lo, hi = get("limit", "lower"), get("limit", "upper")
+    if lo is not None and hi is not None and lo > hi:
+        raise DataError(f"robot model {path}: {who}: position limit lower {lo:g} is above upper {hi:g}")
+    for attr in ("velocity", "effort"):
+        v = get("limit", attr)
+        if v is not None and v < 0:
+            raise DataError(f"robot model {path}: {who}: <limit {attr}> {v:g} is negative")
+    for attr in ("damping", "friction"):
+        v = get("dynamics", attr)
+        if v is not None and v < 0:
+            raise DataError(f"robot model {path}: {who}: <dynamics {attr}> {v:g} is negative")
+    if ("axis", "xyz") in vals and not np.linalg.norm(vals[("axis", "xyz")]) > 0:
+        raise DataError(f"robot model {path}: {who}: <axis xyz> is the zero vector")
+
+
 def add_robot(builder: DiagramBuilder, urdf, time_step: float = 0.0, base_link: str | None = None,
               payload: tuple | None = None, flange_frame: str | None = None, rotor: tuple | None = None):
     """Parse ``urdf`` into a MultibodyPlant in ``builder``, weld its base to the world and finalize.
@@ -93,10 +187,27 @@ def add_robot(builder: DiagramBuilder, urdf, time_step: float = 0.0, base_link: 
     urdf = Path(urdf)
     if not urdf.exists():
         raise DataError(f"robot model not found: {urdf}")
+    if not urdf.is_file():
+        raise DataError(f"robot model {urdf} is not a regular file")
+    validate_urdf(urdf)
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=time_step)
     parser = Parser(plant)
     parser.SetAutoRenaming(True)
-    (model,) = parser.AddModels(str(urdf))
+    try:
+        model = _build_model(plant, parser, urdf, base_link, payload, flange_frame, rotor)
+    except DataError:
+        raise
+    except Exception as err:  # noqa: BLE001 - Drake: RuntimeError with a long text (parse, loops, Finalize)
+        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+        raise DataError(f"cannot load robot model {urdf}: {first[:200]}") from None
+    return plant, scene_graph, model
+
+
+def _build_model(plant, parser, urdf, base_link, payload, flange_frame, rotor):
+    models = parser.AddModels(str(urdf))
+    if len(models) != 1:
+        raise DataError(f"robot model {urdf} holds {len(models)} models; one robot is expected")
+    (model,) = models
     if base_link is None:
         base_link = _root_link(plant, model)
     if base_link is not None:    # None: the model is already attached to the world by its own joint
@@ -111,7 +222,7 @@ def add_robot(builder: DiagramBuilder, urdf, time_step: float = 0.0, base_link: 
             act.set_default_gear_ratio(float(gear[k]))
             act.set_default_rotor_inertia(float(inertia[k]))
     plant.Finalize()
-    return plant, scene_graph, model
+    return model
 
 
 def _root_link(plant, model) -> str:

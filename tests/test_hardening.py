@@ -147,6 +147,33 @@ def _build(case, tmp):
     if case.startswith("api_"):
         return _api_case(case)
     out = ["--out", str(tmp / "out")]
+    if case.startswith("deg_"):
+        deg = str(_csv(f, _with(c, q1=np.degrees(c["q1"]) * 4)))      # +-115 "rad"
+        urdf = str(Path(__file__).resolve().parents[1] / "models" / "irb140.urdf")
+        return {"deg_check_urdf": ["check", deg, "--robot", urdf],
+                "deg_diagnose_urdf": ["diagnose", deg, "--robot", urdf] + out,
+                "deg_spectrum_irb140": ["spectrum", deg, "--signal", "tau1", "--position", "q1", "--robot",
+                                        "irb140"] + out}[case]
+    if case.startswith("urdf_"):
+        import xml.etree.ElementTree as ET
+
+        root = ET.parse(Path(__file__).resolve().parents[1] / "models" / "irb140.urdf").getroot()
+        link1 = [el for el in root.iter("link") if el.get("name") == "link_1"][0]
+        joint2 = [el for el in root.iter("joint") if el.get("name") == "joint_2"][0]
+        if case == "urdf_nan_inertia":
+            link1.find("inertial/inertia").set("ixx", "nan")
+        elif case == "urdf_negative_mass":
+            link1.find("inertial/mass").set("value", "-3")
+        elif case == "urdf_limits_swapped":
+            joint2.find("limit").set("lower", "2.5")
+        elif case == "urdf_missing_joint":
+            root.remove(joint2)
+        text = ET.tostring(root, encoding="unicode")
+        if case == "urdf_truncated":
+            text = text[:len(text) // 2]
+        u = tmp / "robot.urdf"
+        u.write_text(text)
+        return ["check", str(_csv(f, c)), "--robot", str(u)]
     if case == "ft_wrench_1d":
         return ["calibrate", "ft", str(_ft_npz(tmp, wrench_1d=True))] + out
     if case == "ft_not_rigid":
@@ -378,7 +405,7 @@ def test_robot_option_errors(tmp_path, capsys):
     bad = tmp_path / "bad.urdf"
     bad.write_text("<robot name='x'><link name='a'/>")
     for robot, frag in (("foo", "--robot must be"), (str(tmp_path / "none.urdf"), "robot model not found"),
-                        (str(bad), "cannot load robot model")):
+                        (str(bad), "is not valid XML")):
         assert main(["check", log, "--robot", robot]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and frag in err, err

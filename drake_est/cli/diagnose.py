@@ -57,6 +57,13 @@ def run(args) -> int:
     from drake_est.cli._common import load_log_checked
 
     paths = args.log if isinstance(args.log, list) else [args.log]
+    seen = {}
+    for p in paths:
+        key = Path(p).resolve()
+        if key in seen:
+            raise DataError(f"log {p} is given twice (as {seen[key]}); each log may be diagnosed once, whole logs "
+                            "are held out")
+        seen[key] = p
     logs = [load_log_checked(p, args.robot, "diagnose", nan_policy="drop" if args.drop_invalid else "raise")
             for p in paths]
     if len(logs) == 1:

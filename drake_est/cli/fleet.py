@@ -34,6 +34,11 @@ def run_diagnose(args) -> int:
     from drake_est.fleet.run import run_fleet
     if args.workers is not None and args.workers < 1:
         raise DataError(f"--workers must be at least 1, got {args.workers}")
+    from drake_est.cli._common import check_number
+
+    check_number("--workers", args.workers, 1, 1024, integer=True)
+    check_number("--limit", args.limit, 1, None, integer=True)
+    check_number("--seed", args.seed, 0, 2**32 - 1, integer=True)
     c = run_fleet(args.source, args.store, scheduler=args.scheduler, workers=args.workers,
                   settings={"seed": args.seed}, limit=args.limit)
     print(f"fleet diagnose: {c['logs']} logs, {c['skipped']} already in the store (skipped), {c['ok']} diagnosed, "

@@ -30,6 +30,18 @@ def run(args) -> int:
         return 0
     if args.name not in exps:
         raise DrakeEstError(f"unknown experiment '{args.name}'; choose one of: {', '.join(sorted(exps))}")
+    from drake_est.cli._common import check_number
+
+    check_number("--seed", args.seed, 0, 2**32 - 1, integer=True)
+    if args.data is not None:
+        import inspect
+
+        if "data_dir" not in inspect.signature(exps[args.name]).parameters:
+            raise DrakeEstError(f"--data is only used by the real-data experiments; '{args.name}' does not read it")
+        if not Path(args.data).exists():
+            raise DrakeEstError(f"--data folder {args.data} not found")
+        if not Path(args.data).is_dir():
+            raise DrakeEstError(f"--data {args.data} is not a folder")
     out = Path(args.out or f"reproduce-{args.name}")
     if out.exists() and not out.is_dir():
         raise DrakeEstError(f"--out {out} exists and is not a folder")

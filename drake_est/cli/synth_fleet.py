@@ -18,8 +18,15 @@ def register(sub):
 def run(args) -> int:
     from drake_est.errors import DataError
     from drake_est.fleet.synth_fleet import synth_fleet
+    from drake_est.cli._common import check_number
+
+    check_number("--duration", args.duration, 5, 3600, unit="s")
     if args.duration < 5:
         raise DataError(f"--duration must be at least 5 s, got {args.duration}")
+    check_number("--robots", args.robots, 3, 10_000, integer=True)
+    check_number("--days", args.days, 8, 3650, integer=True)
+    check_number("--seed", args.seed, 0, 2**32 - 1, integer=True)
+    check_number("--irb140", args.irb140, 0, args.robots, integer=True)
     s = synth_fleet(args.out, robots=args.robots, days=args.days, seed=args.seed, duration=args.duration,
                     truth_path=args.truth, n_irb140=args.irb140)
     print(f"synth-fleet: {s['logs']} logs of {s['robots']} robots x {s['days']} days in {s['out']} "

@@ -31,13 +31,16 @@ def run(args) -> int:
     from drake_est.seam.analysis import run_tracking
     from drake_est.seam.simulate import ScenarioConfig
 
+    from drake_est.cli._common import check_number
+
     if args.particles < 2:
         raise DataError(f"--particles must be >= 2, got {args.particles}")
+    check_number("--particles", args.particles, 2, 100_000, integer=True)   # memory and time stay bounded
+    check_number("--seed", args.seed, 0, 2**32 - 1, integer=True)
+    # the simulated duration is the seam length / speed: bounded below; the robot's joint speeds bound it above
+    check_number("--speed", args.speed, 1e-3, 0.5, unit="m/s")
+    check_number("--realtime-rate", args.realtime_rate, 1e-2, 1e2)
     sc = ScenarioConfig() if args.speed is None else ScenarioConfig(speed=args.speed)
-    if not sc.speed > 0:
-        raise DataError(f"--speed must be > 0, got {args.speed}")
-    if args.realtime_rate is not None and not args.realtime_rate > 0:
-        raise DataError(f"--realtime-rate must be > 0, got {args.realtime_rate}")
     live = None
     if args.meshcat:
         from pydrake.geometry import Meshcat
