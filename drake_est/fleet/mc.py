@@ -28,7 +28,7 @@ def child_seed(seed: int, index: int) -> int:
 
 
 def _call(func, params, seed):
-    from drake_est.fleet.run import single_thread_blas
+    from drake_est.threads import single_thread_blas
     with single_thread_blas():
         return func(params, seed=seed)
 

@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 from drake_est.errors import DataError
+from drake_est.threads import single_thread_blas  # noqa: F401  (re-exported: drake_est.fleet.run.single_thread_blas)
 
 LOG_SUFFIXES = (".npz", ".csv")
 KNOWN_MODELS = ("generic", "irb140")
@@ -194,17 +195,6 @@ def _worker_name() -> str:
         return str(get_worker().name)
     except Exception:
         return f"pid{os.getpid()}"
-
-
-def single_thread_blas():
-    """Context limiting BLAS/OpenMP to one thread (threadpoolctl when installed; worker processes
-    also get ``OMP_NUM_THREADS=1`` etc. from :func:`worker_env`)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - threadpoolctl comes with scikit-learn
-        import contextlib
-        return contextlib.nullcontext()
-    return threadpool_limits(1)
 
 
 def diagnose_entry(entry: dict, settings: dict, sha: str | None = None) -> dict:
