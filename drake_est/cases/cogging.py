@@ -99,6 +99,38 @@ def _ripple_per_rev(rep) -> list:
     return out
 
 
+#: the uncompensated logs of the several-log diagnosis, in order (odd positions train, even ones are held out:
+#: the other session at the same speed, a third slow2 log and the 3x slower log)
+MULTILOG = ("slow2/nocomp_0.npy", "slow_goodgains_2/nocomp_0.npy", "slow2/nocomp_1.npy",
+            "slow_goodgains_2/nocomp_1.npy", "slow2/nocomp_2.npy", "slow2_slower/nocomp_0.npy")
+
+
+def cogging_multilog_diagnosis(names=MULTILOG, data_dir=None, seed: int = 0, v_max: float = 3.0) -> dict:
+    """``diagnose`` on several ODrive logs at once (:func:`drake_est.diagnose.diagnose_logs`: one model,
+    per-log Coulomb/viscous offsets, whole logs held out).  Returns the findings, the ripple frequencies
+    in cycles per revolution, the RMSE reduction on the held-out logs and the per-log table."""
+    from drake_est.diagnose import diagnose_logs
+    logs = []
+    for n in names:
+        lg, _ = _select(load_odrive_log(n, data_dir), v_max)
+        lg.meta["file"] = n
+        logs.append(lg)
+    rep = diagnose_logs(logs, robot="generic", seed=seed, simulate=False)
+    d = rep.to_dict()
+    per_rev = []
+    across = None
+    for f in d["findings"]:
+        if f["effect"] == "motor_position_ripple":
+            per_rev += [float(x) * 2 * np.pi for x in f["evidence"]["frequencies_per_arm_rad"]]
+            across = f.get("across_logs")
+    nv, fv = d["nominal"]["validation"]["rmse"], d["final"]["validation"]["rmse"]
+    return {"logs": list(names), "effects": rep.effects, "ripple_per_rev": per_rev,
+            "status": [f["status"] for f in d["findings"]],
+            "nominal_heldout_rmse_A": nv, "final_heldout_rmse_A": fv, "heldout_rmse_reduction": 1 - fv / nv,
+            "per_log": d["logs"], "across_logs": across, "summary": rep.summary(),
+            "diagnosis_s": d["timing_s"].get("total_s")}
+
+
 def cogging_diagnosis_study(data_dir=None, out_dir=None, seed: int = 0, v_max: float = 3.0,
                             quick: bool = False) -> dict:
     """Cross-log validation of the cogging models and ``diagnose`` on nocomp / comp logs."""
@@ -170,6 +202,9 @@ def cogging_diagnosis_study(data_dir=None, out_dir=None, seed: int = 0, v_max: f
                    "nominal_heldout_rmse_A": d["nominal"]["validation"]["rmse"],
                    "final_heldout_rmse_A": d["final"]["validation"]["rmse"]}
     out["diagnose"] = diag
+    if all(n in names for n in MULTILOG):
+        ml = cogging_multilog_diagnosis(MULTILOG, data_dir, seed, v_max)
+        out["multilog"] = {k: v for k, v in ml.items() if k != "summary"}
     if out_dir is not None:
         out["figures"] = _figures(Path(out_dir), train, per, logs, out)
     return out

@@ -47,7 +47,7 @@ def diagnose(log, robot: str | None = "generic", joints=None, seed: int = 0, sim
         source = source or str(log)
         log = load_log(log)
     robot = "generic" if robot is None else str(robot)
-    from drake_est.fleet.run import single_thread_blas
+    from drake_est.threads import single_thread_blas
     # the least-squares problems are small (thousands x tens): one BLAS thread is fastest, and much faster
     # than contended threads on a loaded machine (measured 0.53 s vs 0.025 s per 4291 x 70 lstsq, load 10)
     with single_thread_blas():
@@ -81,7 +81,8 @@ def concatenate_logs(logs, gap_s: float = 1.0):
         if lg.tau is None:
             raise DataError(f"log {k + 1} has no torque columns")
         if lg.dq is None or lg.ddq is None or "derivatives" in lg.meta:
-            lg = Log(t=lg.t, q=lg.q, tau=lg.tau, joints=joints, meta={}).with_derivatives(window_s=DERIV_WINDOW_S)
+            lg = Log(t=lg.t, q=lg.q, tau=lg.tau, joints=joints,
+                     meta={"file": lg.meta.get("file", f"log{k + 1}")}).with_derivatives(window_s=DERIV_WINDOW_S)
         t = lg.t - lg.t[0] + (0.0 if t_end is None else t_end + gap_s)
         t_end = float(t[-1])
         parts.append((t, lg, np.full(t.size, float(k))))

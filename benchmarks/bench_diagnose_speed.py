@@ -1,0 +1,70 @@
+"""Time to diagnose 45,000-sample logs (issue #16 acceptance: one log < 10 s, ten logs < 60 s on 2 cores).
+
+Times exactly ``diagnose(log, robot=..., simulate=False)`` (preparation, search, unexplained verdict; no
+forward simulation, no report writing) on logs generated before the clock starts:
+
+* ``generic``: ten 450 s, 100 Hz generic-axis logs of :mod:`drake_est.diagnose.testbench` (seeds 0-9,
+  cycling through ripple, Stribeck, time-periodic disturbance, energy drift and none);
+* ``irb140``: one 450 s, 100 Hz joint-1 IRB 140 log of :mod:`drake_est.synth` with a motor ripple.
+
+Wall time and process CPU time (``time.process_time``) are both written: on a machine shared with other
+jobs the CPU time is the meaningful number.  BLAS runs single-threaded inside ``diagnose``.
+
+Usage: python benchmarks/bench_diagnose_speed.py [--n 10] [--json OUT.json]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+EFFECTS = ("motor_position_ripple", "stribeck", "time_periodic_disturbance", "energy_dependent_friction", None)
+N_SAMPLES = 45000
+
+
+def main(argv=None):
+    from drake_est.data import Log
+    from drake_est.diagnose import diagnose
+    from drake_est.diagnose.testbench import generate
+    from drake_est.jsonutil import dump_json
+    from drake_est.synth import synthesize
+
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--n", type=int, default=10)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args(argv)
+    logs = []
+    for s in range(args.n):
+        eff = EFFECTS[s % len(EFFECTS)]
+        lg, _ = generate({eff: 1.0} if eff else {}, seed=s, duration=N_SAMPLES / 100.0, sample_rate=100.0)
+        logs.append((f"testbench {eff or 'none'} seed {s}", lg, "generic"))
+    lg, _ = synthesize("motor_position_ripple", seed=45, duration=451.0, sample_rate=100.0)
+    irb = Log(t=lg.t[:N_SAMPLES], q=lg.q[:N_SAMPLES], tau=lg.tau[:N_SAMPLES], joints=lg.joints)
+    rows = []
+    for name, lg, robot in logs + [("synth irb140 ripple", irb, "irb140")]:
+        w0, c0 = time.perf_counter(), time.process_time()
+        rep = diagnose(lg, robot=robot, seed=0, simulate=False)
+        wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+        rows.append({"log": name, "samples": int(lg.n_samples), "robot": robot, "wall_s": wall, "cpu_s": cpu,
+                     "findings": rep.effects})
+        print(f"{name:45s} {lg.n_samples} samples: wall {wall:5.1f} s, CPU {cpu:5.1f} s  {rep.effects}", flush=True)
+    gen = [r for r in rows if r["robot"] == "generic"]
+    out = {"rows": rows, "n_generic_logs": len(gen),
+           "generic_total_wall_s": float(sum(r["wall_s"] for r in gen)),
+           "generic_total_cpu_s": float(sum(r["cpu_s"] for r in gen)),
+           "generic_max_cpu_s": float(max(r["cpu_s"] for r in gen)),
+           "irb140_cpu_s": rows[-1]["cpu_s"], "irb140_wall_s": rows[-1]["wall_s"],
+           "load_average_1min": os.getloadavg()[0], "cpu_count": os.cpu_count()}
+    print(f"{len(gen)} generic logs of {N_SAMPLES} samples: total wall {out['generic_total_wall_s']:.1f} s, "
+          f"CPU {out['generic_total_cpu_s']:.1f} s (slowest {out['generic_max_cpu_s']:.1f} s CPU); "
+          f"IRB 140 log: wall {out['irb140_wall_s']:.1f} s, CPU {out['irb140_cpu_s']:.1f} s; "
+          f"load average {out['load_average_1min']:.1f} on {out['cpu_count']} cores")
+    if args.json:
+        dump_json(out, args.json)
+    return out
+
+
+if __name__ == "__main__":
+    main()
