@@ -192,6 +192,32 @@ def _not_aliased(pc, keep, q, v, r, min_frac=0.01, n_bins=4, need=3):
     return ok or [keep[0]]
 
 
+def present_at_all_speeds(C, v, r, min_frac=0.01, n_bins=4, need=3):
+    """Whether the columns C explain at least ``min_frac`` of the residual variance beyond [sign(v), v]
+    (plus an AIC-like margin of 2 d s^2) in ``need`` of ``n_bins`` speed quantile bins (bins with too few
+    samples are not counted).  Used for components that must not depend on speed (a time-periodic
+    disturbance); the ripple's alias check (:func:`_not_aliased`) applies the same rule per component.
+    True (not testable) when the log has one speed level only (the 10-90 % speeds within a factor 1.3)."""
+    av = np.abs(v)
+    lo, hi = np.quantile(av, [0.1, 0.9])
+    if hi < 1.3 * lo:
+        return True
+    edges = np.quantile(av, np.linspace(0, 1, n_bins + 1))
+    bins = np.clip(np.searchsorted(edges, av, side="right") - 1, 0, n_bins - 1)
+    passed = 0
+    for b in range(n_bins):
+        m = bins == b
+        if m.sum() < 4 * (C.shape[1] + 2):
+            continue
+        B = np.column_stack([_sgn(v[m]), v[m]])
+        rb = r[m] - B @ np.linalg.lstsq(B, r[m], rcond=None)[0]
+        A = np.hstack([B, C[m]])
+        rf = r[m] - A @ np.linalg.lstsq(A, r[m], rcond=None)[0]
+        if (rb @ rb - rf @ rf) >= min_frac * (rb @ rb) + 2.0 * C.shape[1] * (rf @ rf) / max(m.sum(), 1):
+            passed += 1
+    return passed >= need
+
+
 class _Sub:
     """The selected components of a PeriodicComponents (regressors only)."""
 
@@ -432,6 +458,10 @@ def time_periodic(jd, r, n_components=1):
         f = best[1]
     w = 2 * np.pi * f * t
     C = np.column_stack([np.cos(w), np.sin(w)])
+    # a disturbance from outside the axis does not know the axis' speed: it must be present at (nearly) every
+    # speed; a motion-locked error that a sinusoid in time happens to fit shows at some speeds only
+    if not present_at_all_speeds(C[tr], v[tr], rt):
+        return None
     spec = {"effect": "time_periodic_disturbance", "frequencies_hz": [f]}
     B = np.column_stack([np.ones_like(tt), C[tr]])
     c = np.linalg.lstsq(B, rt, rcond=None)[0]
