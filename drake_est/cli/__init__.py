@@ -82,7 +82,10 @@ def main(argv=None) -> int:
               file=sys.stderr)
         return 2
     except UnicodeDecodeError:
-        name = getattr(args, "log", None) or getattr(args, "data", None) or "input file"
+        name = (getattr(args, "log", None) or getattr(args, "data", None) or getattr(args, "source", None)
+                or "input file")
+        if isinstance(name, list):
+            name = " / ".join(str(n) for n in name)
         print(f"drake-est {args.command}: error: {name} is not a text CSV (binary or wrong encoding; "
               "expected a UTF-8 CSV with a header, or an NPZ)", file=sys.stderr)
         return 2

@@ -16,15 +16,14 @@ def check_number(name: str, val, lo=None, hi=None, lo_strict: bool = False, hi_s
     if integer and (isinstance(val, bool) or int(val) != val):
         raise DataError(f"{name} must be an integer, got {val}")
     v = float(val)
-    rng = (("(" if lo_strict else "[") + ("-inf" if lo is None else f"{lo:g}") + ", "
-           + ("inf" if hi is None else f"{hi:g}") + (")" if hi_strict else "]"))
+    fmt = (lambda x: str(int(x))) if integer else (lambda x: f"{x:g}")
+    rng = (("(" if lo_strict else "[") + ("-inf" if lo is None else fmt(lo)) + ", "
+           + ("inf" if hi is None else fmt(hi)) + (")" if hi_strict else "]"))
     u = f" {unit}" if unit else ""
     if not math.isfinite(v):
         raise DataError(f"{name} must be a finite number in {rng}{u}, got {val}")
-    if lo is not None and (v < lo or (lo_strict and v == lo)):
-        raise DataError(f"{name} must be in {rng}{u}, got {val:g}")
-    if hi is not None and (v > hi or (hi_strict and v == hi)):
-        raise DataError(f"{name} must be in {rng}{u}, got {val:g}")
+    if (lo is not None and (v < lo or (lo_strict and v == lo))) or (hi is not None and (v > hi or (hi_strict and v == hi))):
+        raise DataError(f"{name} must be in {rng}{u}, got {val if integer else format(val, 'g')}")
     return val
 
 

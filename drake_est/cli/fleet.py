@@ -63,7 +63,17 @@ def run_report(args) -> int:
             tp = Path(args.truth)
             if not tp.exists():
                 raise DataError(f"--truth {tp} not found")
-            chk = check_against_truth(fleet_trends(st), json.loads(tp.read_text()))
+            try:
+                truth = json.loads(tp.read_text())
+            except (json.JSONDecodeError, UnicodeDecodeError) as err:
+                raise DataError(f"--truth {tp} is not valid JSON ({err})") from None
+            if not isinstance(truth, dict):
+                raise DataError(f"--truth {tp} must hold a JSON object (the truth file of synth-fleet)")
+            try:
+                chk = check_against_truth(fleet_trends(st), truth)
+            except (KeyError, TypeError, ValueError, AttributeError) as err:
+                raise DataError(f"--truth {tp} is not a truth file of synth-fleet ({type(err).__name__}: "
+                                f"{str(err)[:120]})") from None
             print(f"truth: {chk['found']}/{chk['planted']} planted changes found in the top warnings with robot, "
                   f"joint, cause and date; {chk['healthy_robot_warnings']} warnings on {chk['healthy_robots']} "
                   f"healthy robots; {chk['extra_warnings_on_planted_robots']} other warnings")

@@ -317,7 +317,7 @@ def _run_dask(todo, shas, settings, st, run_id, counts, scheduler, workers, clie
             if scheduler:
                 try:
                     own_client = Client(scheduler, timeout="20s")
-                except (OSError, TimeoutError) as err:
+                except (OSError, TimeoutError, ValueError) as err:   # ValueError: a malformed address
                     raise DataError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
             else:
                 cluster = local_cluster(workers)
