@@ -330,10 +330,23 @@ def markdown(d: dict) -> str:
                  f"held-out RMSE reduced by {100 * ev['heldout_rmse_reduction']:.1f} % (score {f['score']:.4g}).")
         c = f.get("competition") or {}
         if c.get("runner_up"):
-            L.append(f"Competing explanation: runner-up `{c['runner_up']}` (joint {c['runner_up_joint']}), beaten by "
-                     f"{c['margin']:.4g} in held-out score" + (" -- **ambiguous between "
+            m = c.get("margin")
+            how = (f"beaten by {m:.4g} in held-out score" if m is not None and m >= 0 else
+                   "not tested" if m is None else f"ahead by {-m:.4g} in held-out score")
+            L.append(f"Competing explanation: runner-up `{c['runner_up']}` (joint {c['runner_up_joint']}), {how}"
+                     + (" -- **ambiguous between "
                      f"`{f['effect']}` and `{c['runner_up']}`**: the evidence does not separate them." if c.get("ambiguous")
                      else "."))
+            if c.get("reason"):
+                L.append(f"Why ambiguous: {c['reason']}.")
+            for a in c.get("explained_by_periodic_residual", []):
+                L.append(f"Set aside: `{a['effect']}` (joint {a['joint']}) only absorbed the periodic residual (partial "
+                         f"held-out F-test given the periodic structure: p = {a['p_value']:.3g}).")
+        if f.get("across_logs"):
+            a = f["across_logs"]
+            L.append(f"Across logs: speed-level ratio {a['speed_level_ratio_all_logs']:.3g} over all logs, at most "
+                     f"{max(a['speed_level_ratio_per_log'] or [1.0]):.3g} within one log; identifiable in a single log: "
+                     f"{a['identifiable_in_a_single_log']}, across the logs: {a['identifiable_across_logs']}.")
         L.append("Parameters: " + ", ".join(f"{a} = {_fmt(b)}" for a, b in f["parameters"].items()
                                             if not isinstance(b, list) or len(b) <= 4))
         v = f["validation"]
