@@ -82,6 +82,12 @@ def real_cogging(out_dir, quick: bool = False, seed: int = 0, data_dir=None, **k
         print(f"fit {diag['train']} -> {n}: nominal {h['nominal_rmse_A']:.3f} A, periodic kernels "
               f"{h['periodic_position_rmse_A']:.3f} A ({100 * h['reduction_periodic_position']:.0f} % lower), "
               f"diagnosed extensions {h['diagnosed_rmse_A']:.3f} A ({100 * h['reduction_diagnosed']:.0f} %)")
+    ml = diag.get("multilog")
+    if ml:
+        print(f"diagnose {len(ml['logs'])} logs at once (whole logs held out): {', '.join(ml['effects'])}; ripple at "
+              + ", ".join(f"{f:.1f}" for f in ml["ripple_per_rev"]) + f" per rev; held-out RMSE "
+              f"{ml['nominal_heldout_rmse_A']:.3f} -> {ml['final_heldout_rmse_A']:.3f} A "
+              f"({100 * ml['heldout_rmse_reduction']:.0f} % lower)")
     vr = spec["velocity_ripple_summary"]
     print(f"velocity ripple at the harmonics: nocomp {vr['uncompensated_mean_ripple_rms_rad_s']:.3f} rad/s, "
           f"comp {vr['compensated_mean_ripple_rms_rad_s']:.3f} rad/s")
