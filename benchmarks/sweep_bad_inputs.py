@@ -29,15 +29,16 @@ def option_cases(tmp):
     out = ["--out", str(tmp / "out")]
     cases = []
     for bad in ("nan", "inf", "-inf", "-1", "0", "1e300"):
+        nz = bad if bad != "0" else "-0.001"      # noise 0 and v-min 0 are valid settings
         cases += [(f"synth --duration {bad}", ["synth", "--out", str(tmp / "s.csv"), "--duration", bad]),
                   (f"synth --rate {bad}", ["synth", "--out", str(tmp / "s.csv"), "--rate", bad]),
-                  (f"synth --noise {bad}", ["synth", "--out", str(tmp / "s.csv"), "--noise", bad, "--duration", bad]),
+                  (f"synth --noise {nz}", ["synth", "--out", str(tmp / "s.csv"), "--noise", nz]),
                   (f"spectrum --gear-ratio {bad}", ["spectrum", log, "--signal", "tau1", "--position", "q1",
                                                    "--gear-ratio", bad] + out),
                   (f"spectrum --f-max {bad}", ["spectrum", log, "--signal", "tau1", "--position", "q1",
                                               "--f-max", bad] + out),
                   (f"fit-friction --holdout {bad}", ["fit-friction", log, "--holdout", bad] + out),
-                  (f"fit-friction --v-min {bad}", ["fit-friction", log, "--v-min", bad, "--holdout", bad] + out),
+                  (f"fit-friction --v-min {nz}", ["fit-friction", log, "--v-min", nz] + out),
                   (f"calibrate ft --mass {bad}", ["calibrate", "ft", ft, "--method", "cayley", "--mass", bad] + out),
                   (f"calibrate laser --length-scale {bad}", ["calibrate", "laser", laser, "--length-scale", bad] + out),
                   (f"calibrate laser --assign-threshold {bad}", ["calibrate", "laser", laser, "--assign-threshold",

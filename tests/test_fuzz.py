@@ -359,6 +359,45 @@ def _friction_csv() -> bytes:
 
 
 FRICTION_CSV = _friction_csv()
+
+
+@st.composite
+def corrupt_values(draw):
+    """1-3 numeric edits of the friction log that keep a well-formed CSV: a cell set to an extreme value, a
+    column scaled or quantized or held constant, the time axis rescaled, a gap, swapped/duplicated rows,
+    a short log -- damage that passes the parser and must be caught (or handled) by the numerics."""
+    rows = np.array([[float(x) for x in ln.split(",")] for ln in FRICTION_CSV.decode().splitlines()[1:]])
+    for _ in range(draw(st.integers(1, 3))):
+        n = rows.shape[0]
+        op = draw(st.sampled_from(["cell", "scale", "quantize", "constant", "time_scale", "gap", "swap", "dup",
+                                   "short", "offset"]))
+        i = draw(st.integers(0, n - 1))
+        c = draw(st.integers(0, 2))
+        if op == "cell":
+            rows[i, c] = draw(st.one_of(st.sampled_from([np.nan, np.inf, -np.inf, 1e300, -1e300, 1e8, 0.0, 1e-300]),
+                                        st.floats(allow_nan=False, allow_infinity=False)))
+        elif op == "scale":
+            rows[:, c] *= draw(st.sampled_from([1e-300, 1e-6, 1e3, 1e6, -1.0, 0.0]))
+        elif op == "quantize":
+            step = draw(st.sampled_from([0.5, 0.1, 1.0]))
+            rows[:, draw(st.integers(1, 2))] = np.round(rows[:, c] / step) * step
+        elif op == "constant":
+            rows[:, draw(st.integers(1, 2))] = draw(st.sampled_from([0.0, 1.0]))
+        elif op == "time_scale":
+            rows[:, 0] *= draw(st.sampled_from([1e-3, 1e3, 1e6, 1e-9]))
+        elif op == "gap":
+            rows[i:, 0] += draw(st.sampled_from([0.5, 10.0, 1e4, 1e7]))
+        elif op == "swap" and n > 1:
+            j = draw(st.integers(0, n - 1))
+            rows[[i, j]] = rows[[j, i]]
+        elif op == "dup":
+            rows = np.insert(rows, i, rows[i], axis=0)
+        elif op == "short":
+            rows = rows[:max(2, draw(st.integers(2, 60)))]
+        else:
+            rows[:, 1] += draw(st.sampled_from([1e3, -50.0, 2 * np.pi]))
+    text = "t,q1,tau1\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows) + "\n"
+    return text.encode()
 LOG_COMMANDS = {
     "check": lambda p, o: ["check", p],
     "fit-friction": lambda p, o: ["fit-friction", p, "--no-plots", "--out", o],
@@ -391,6 +430,8 @@ LONG_TARGETS = {
     "urdf_diagnose_cli": (dict(data=corrupt_urdf()), lambda d, data: _fuzz_urdf_diagnose(data, d), 2, 1),
     "log_commands": (dict(data=corrupt(FRICTION_CSV), command=st.sampled_from(sorted(LOG_COMMANDS))),
                      lambda d, data, command: _fuzz_log_command(data, command, d), 5, 3),
+    "log_values_commands": (dict(data=corrupt_values(), command=st.sampled_from(sorted(LOG_COMMANDS))),
+                            lambda d, data, command: _fuzz_log_command(data, command, d), 3, 3),
 }
 FUZZ_SECONDS = float(os.environ.get("DRAKE_EST_FUZZ_SECONDS", "300"))
 
