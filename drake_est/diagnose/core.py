@@ -195,7 +195,7 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
         if prep.robot is None and not have("position_dependent_load"):
             out.append(det.position_load(jd, r, fit_inner))
         if not have("motor_position_ripple"):
-            out.append(det.ripple(jd, r, n_components=RIPPLE_COMPONENTS))
+            out.append(det.ripple(jd, r, n_components=RIPPLE_COMPONENTS, fit_inner=fit_inner))
         if not have("energy_dependent_friction"):
             cj = fit.coef[j]
             names = nominal_names(prep.robot_kind)
@@ -275,7 +275,7 @@ def _above_quantization(prep, fit0, fit1, ext) -> bool:
     return True
 
 
-def _competition(ext, tst, results) -> dict:
+def _competition(ext, tst, results, prep=None) -> dict:
     """The runner-up among the competing explanations of the same residual (other effects on the same
     joint(s), judged on the same held-out data), the margin of the winner's score over it, and whether the
     evidence separates them (``ambiguous`` when the runner-up is significant and the margin is below
@@ -286,9 +286,22 @@ def _competition(ext, tst, results) -> dict:
         return {"runner_up": None, "margin": None, "ambiguous": False}
     e2, t2 = max(rivals, key=lambda r: r[1]["score"])
     margin = float(tst["score"] - t2["score"])
-    return {"runner_up": e2.effect, "runner_up_joint": int(e2.joint), "runner_up_score": float(t2["score"]),
-            "runner_up_significant": bool(t2["significant"]), "margin": margin,
-            "ambiguous": bool(t2["significant"] and margin < AMBIGUITY_MARGIN)}
+    out = {"runner_up": e2.effect, "runner_up_joint": int(e2.joint), "runner_up_score": float(t2["score"]),
+           "runner_up_significant": bool(t2["significant"]), "margin": margin,
+           "ambiguous": bool(t2["significant"] and margin < AMBIGUITY_MARGIN)}
+    if prep is not None and t2["significant"] and not out["ambiguous"]:
+        # a coarse torque ADC: when the winner's and the runner-up's held-out predictions differ by less than
+        # one quantization step, what separates them is the deterministic rounding error, not evidence
+        f1 = next(f for e, _, f, _ in results if e is ext)
+        f2 = next(f for e, t, f, _ in results if e is e2)
+        for j in js & set(e2.cols):
+            step = prep.meta.get("tau_step", {}).get(j) or 0.0
+            jd = prep.joints[j]
+            d = (f1.pred[j] - f2.pred[j])[jd.val]
+            if step > 0 and float(np.sqrt(np.mean(d ** 2))) < step:
+                out["ambiguous"] = True
+                out["separated_below_quantization_step"] = True
+    return out
 
 
 def _best_surviving(prep, model, fit, sig, alpha, min_gain):
@@ -346,7 +359,7 @@ def _search(prep, max_findings, alpha, min_gain):
             break
         best, periodic = comp.resolve_periodic(prep, best, results)
         ext, tst, f1, m1 = best
-        competition = _competition(ext, tst, results)
+        competition = _competition(ext, tst, results, prep)
         if periodic is not None:      # one speed level: ripple in position vs in time not identifiable
             competition.update(periodic)
             accepted.update((e, ext.joint) for e in comp.PERIODIC_PAIR)

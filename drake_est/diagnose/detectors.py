@@ -124,9 +124,33 @@ def position_load(jd, r, fit_inner):
     return _position_kernels(jd, fit_inner, "position_dependent_load", "g", signed=False)
 
 
-def ripple(jd, r, n_components=2, n_basis=None):
+def ripple(jd, r, n_components=2, n_basis=None, fit_inner=None):
     """LPV spectral detector (Ch. 10): periodic components of the residual in arm position with
-    velocity-dependent amplitude; no gear ratio is assumed."""
+    velocity-dependent amplitude; no gear ratio is assumed.  With ``fit_inner`` (and no ``n_basis``) the
+    amplitude model is chosen on the inner split of the training part: constant (one basis function) or
+    velocity-dependent (RIPPLE_BASIS functions); a constant-amplitude ripple seen over a few speed levels is
+    otherwise fitted with many loosely determined amplitude coefficients and loses to a kernel expansion in q."""
+    if fit_inner is None or n_basis is not None:
+        return _ripple(jd, r, n_components, n_basis)
+    from drake_est.identification.friction.extensions import RippleRegressors
+    ext = _ripple(jd, r, n_components, RIPPLE_BASIS)
+    if ext is None:
+        return None
+    lpv = ext.spec["_pc"]
+    rr = RippleRegressors.from_components(lpv.pc, lpv.which)
+    const = RippleRegressors(rr.freqs, {**rr.basis_spec, "n_basis": 1, "sign_split": False})
+    q, v = jd.q[jd.rows], jd.v[jd.rows]
+    C1 = const.regressors(q, v)
+    if fit_inner(C1) <= fit_inner(ext.cols[jd.joint]):
+        ext.cols = {jd.joint: C1}
+        ext.names = [f"c{k}" for k in range(C1.shape[1])]
+        ext.spec["_pc"] = const
+        ext.evidence["amplitude_slope_vs_speed"] = None
+    ext.evidence["amplitude_basis_functions"] = int(ext.cols[jd.joint].shape[1] // (2 * rr.freqs.size))
+    return ext
+
+
+def _ripple(jd, r, n_components=2, n_basis=None):
     from drake_est.errors import DrakeEstError
     from drake_est.spectral.detect import find_periodic_components
 
