@@ -118,3 +118,89 @@ def test_odrive_multilog_names_cogging_with_harmonics():
     assert "time_periodic_disturbance" not in res["effects"]
     assert res["heldout_rmse_reduction"] >= 0.5
     assert res["across_logs"]["identifiable_across_logs"]
+
+
+class _JD:
+    """The fields speed_level_ratio reads."""
+
+    def __init__(self, t, v):
+        self.t, self.v, self.rows = t, v, np.arange(t.size)
+
+
+def test_speed_level_ratio_one_vs_two_levels():
+    from drake_est.diagnose.competition import ONE_SPEED_RATIO, speed_level_ratio
+    t = np.arange(0, 60, 0.01)
+    rng = np.random.default_rng(0)
+    # one level with a strong within-period modulation (a ripple modulating the speed) and reversals
+    v1 = 0.6 * np.sign(np.sin(2 * np.pi * t / 8)) * (1 + 0.5 * np.sin(2 * np.pi * 0.7 * t)) + rng.normal(0, 0.01, t.size)
+    assert speed_level_ratio(_JD(t, v1), window_s=3 / 0.7) < ONE_SPEED_RATIO
+    # two levels, 10 s each
+    v2 = np.where((t // 10) % 2 == 0, 0.3, 0.9)
+    assert speed_level_ratio(_JD(t, v2), window_s=2.0) == pytest.approx(3.0, rel=0.05)
+
+
+def _prep_with_residual(extra, seed=0):
+    """A prepared generic-axis log whose torque has ``extra(t, v)`` on top of Coulomb + viscous: one
+    direction, speed levels 0.05, 0.5, 1.0 rad/s cycling every 45 s (15 s each)."""
+    from drake_est.data import from_arrays
+    from drake_est.diagnose.nominal import prepare
+    rng = np.random.default_rng(seed)
+    h = 0.02
+    t = np.arange(0, 270, h)
+    v = np.select([(t // 15) % 3 == k for k in range(3)], [0.05, 0.5, 1.0])
+    q = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1])) * h])
+    tau = 1.0 * v + 0.8 * np.sign(v) + extra(t, v) + rng.normal(0, 0.02, t.size)
+    return prepare(from_arrays(t, q[:, None], tau[:, None], joints=[1]), robot="generic")
+
+
+@pytest.mark.parametrize("planted,survives", [("periodic", False), ("stribeck", True)])
+def test_stribeck_must_beat_the_periodic_residual(planted, survives):
+    """A disturbance periodic in time (45 s) that peaks during the slow segments looks like friction rising
+    at low speed: the Stribeck candidate is significant on its own, but not in the partial held-out F-test
+    given the periodic structure of the residual.  A real Stribeck term passes both."""
+    import drake_est.diagnose.detectors as det
+    from drake_est.diagnose.competition import survives_periodic
+    from drake_est.diagnose.core import Model, _residual, _test
+
+    def extra(t, v):
+        if planted == "periodic":
+            return 0.4 * np.cos(2 * np.pi * (t - 7.5) / 45.0)
+        return 0.5 * np.sign(v) * np.exp(-np.abs(v / 0.1))
+
+    prep = _prep_with_residual(extra)
+    model = Model(prep)
+    fit = model.fit()
+    jd = prep.joints[1]
+
+    def fit_inner(C, X=model.design(1), y=jd.y, a=jd.train):
+        A = np.hstack([X, C])
+        c, *_ = np.linalg.lstsq(A[a], y[a], rcond=None)
+        e = y[a] - A[a] @ c
+        return float(e @ e)
+
+    ext = det.stribeck(jd, _residual(prep, fit, 1), fit_inner)
+    assert ext is not None
+    alone = _test(prep, fit, Model(prep, [ext]).fit(), ext)
+    assert alone["significant"] and alone["rmse_reduction"] > 0.1, alone
+    t = survives_periodic(prep, model, fit, ext, alpha=1e-4, min_gain=0.02)
+    assert t["significant"] is survives, t
+    assert t["nuisance_columns"] >= 2
+
+
+def test_cli_diagnose_several_logs(tmp_path):
+    import subprocess
+    import sys
+    from drake_est.data import save_log
+    paths = []
+    for k in range(2):
+        lg, _ = generate({"motor_position_ripple": 1.0, "_f_per_rad": 6.0}, seed=k, duration=40, sample_rate=50,
+                         speeds=3)
+        paths.append(str(save_log(lg, tmp_path / f"log{k}.csv")))
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "drake_est", "diagnose", *paths, "--out", str(out), "--no-simulation"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    d = json.loads((out / "report.json").read_text())
+    assert [lg["role"] for lg in d["logs"]] == ["train", "validate"]
+    assert [lg["file"] for lg in d["logs"]] == paths
+    assert "log 2 (validate" in r.stdout
