@@ -30,6 +30,11 @@ def test_one_speed_level_is_ambiguous(effect, kw):
     assert f["status"] == "ambiguous"
     assert set(f["ambiguous_between"]) == {"motor_position_ripple", "time_periodic_disturbance"}
     assert "one speed level" in f["competition"]["reason"]
+    if f["effect"] == "motor_position_ripple":
+        # an alias f + m fs / v cannot be told from f at one speed: the folded frequency is the planted one
+        folded = f["competition"]["frequencies_folded_per_arm_rad"]
+        fr = truth["motor_position_ripple"]["frequency_per_arm_rad"]
+        assert min(abs(x - fr) for x in folded) < 0.02 * fr, folded
     exp = [e for e in d["next_experiment"] if e["reason"].startswith("ambiguous")]
     assert exp and len(exp[0]["speeds"]) == 2
     assert "AMBIGUOUS" in rep.summary()

@@ -89,6 +89,8 @@ def resolve_periodic(prep, best, results):
             "reason": f"one speed level (window-mean speed ratio {ratio:.3g} < {ONE_SPEED_RATIO}): a ripple in "
                       "position and a disturbance periodic in time give the same frequency",
             "speed_level_ratio": ratio}
+    if kept[0].effect == "motor_position_ripple":
+        info["frequencies_folded_per_arm_rad"] = folded_frequencies(kept[0], jd)
     if rival is not None:
         info["runner_up_score"] = float(rival[1]["score"])
         info["runner_up_significant"] = bool(rival[1]["significant"])
@@ -96,6 +98,19 @@ def resolve_periodic(prep, best, results):
     else:
         info["runner_up_score"], info["runner_up_significant"], info["margin"] = None, False, None
     return kept, info
+
+
+def folded_frequencies(ext, jd) -> list:
+    """The ripple's frequencies [cycles/rad] folded to the lowest equivalent one at the log's one speed level:
+    sampled at fs [Hz] while moving at v, a ripple of f cycles/rad is indistinguishable from f + m fs / v
+    (any integer m); with one speed level nothing tells them apart, so the lowest |f - m fs / v| is reported."""
+    fs = 1.0 / float(np.median(np.diff(jd.t)))
+    v = float(np.median(np.abs(jd.v[jd.rows])))
+    fn = fs / max(v, 1e-12)
+    out = []
+    for f in ext.evidence.get("frequencies_per_arm_rad", []):
+        out.append(float(abs(f - np.round(f / fn) * fn)))
+    return out
 
 
 def _fit_rss(A, y, train, val, n_unpenalized):
