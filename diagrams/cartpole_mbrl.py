@@ -6,7 +6,10 @@ upright, |u| <= 10 m/s^2) with :func:`drake_est.control.mbrl.mbrl` (LTV model by
 controller (mean action, as an ``IlqrController.from_plan``) in a Diagram with the continuous cart-pole
 ``MultibodyPlant`` (``models/cartpole.urdf``) through a 0.01 s zero-order hold.
 
-    python diagrams/cartpole_mbrl.py [--duration 4] [--iterations 12] [--out cartpole_mbrl.png]
+    python diagrams/cartpole_mbrl.py [--duration 4] [--iterations 12] [--model ltv] [--out cartpole_mbrl.png]
+
+``--model`` picks the model of Algorithm 7: ``ltv`` (default), ``lti``, ``ltv-nn`` (successive network prior)
+or ``ltv-nn-pretrained`` (network pretrained on random-input experiments, trained here first).
 
 Writes ``<out stem>.json`` with the learned cost per iteration, the cost of the true-model DDP, the cost of the
 simulated closed loop and its deviation from the learned nominal trajectory.
@@ -37,11 +40,13 @@ def main(argv=None):
     ap.add_argument("--duration", type=float, default=4.0, help="simulated time [s] (the task lasts 4 s)")
     ap.add_argument("--iterations", type=int, default=12, help="learning iterations (experiments)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--model", default="ltv", choices=["ltv", "lti", "ltv-nn", "ltv-nn-pretrained"],
+                    help="model of Algorithm 7 (default ltv)")
     ap.add_argument("--out", default="cartpole_mbrl.png")
     a = ap.parse_args(argv)
     model, cost, x0, U0, lo, hi = benchmark_problem()
     T, h = 400, 0.01
-    learned = mbrl(CartPoleTrueSystem(), model, cost, x0, T, model="ltv", iterations=a.iterations, seed=a.seed,
+    learned = mbrl(CartPoleTrueSystem(), model, cost, x0, T, model=a.model, iterations=a.iterations, seed=a.seed,
                    lower=lo, upper=hi, show_progress=True)
     ctrl_l = learned.controller
     J_ddp = ilqr(model, cost, x0, U0, lo, hi).J
@@ -75,9 +80,10 @@ def main(argv=None):
            "true_model_ddp_cost": float(J_ddp),
            "learned_over_ddp": float(min(learned.costs) / J_ddp),
            "closed_loop_theta_deviation_max_rad": float(dev[:, 0].max()),
-           "max_abs_u": float(np.abs(u).max()), "simulated_s": float(t_end), "iterations": a.iterations}
+           "max_abs_u": float(np.abs(u).max()), "simulated_s": float(t_end), "iterations": a.iterations,
+           "model": a.model}
     fig, axs = plt.subplots(3, 1, figsize=(7, 7))
-    axs[0].plot(np.arange(1, a.iterations + 1), learned.costs, "o-", label="LTV model-based RL")
+    axs[0].plot(np.arange(1, a.iterations + 1), learned.costs, "o-", label=f"{a.model.upper()} model-based RL")
     axs[0].axhline(J_ddp, color="k", ls="--", label="DDP, true model")
     axs[0].set_yscale("log")
     axs[0].set_xlabel("learning iteration")
@@ -90,7 +96,7 @@ def main(argv=None):
     axs[2].plot(t, u[:, 0])
     axs[2].set_ylabel("u [m/s^2]")
     axs[2].set_xlabel("time [s]")
-    fig.suptitle("Learned controller (Algorithm 7, LTV) on the Drake cart-pole", fontsize=10)
+    fig.suptitle(f"Learned controller (Algorithm 7, {a.model}) on the Drake cart-pole", fontsize=10)
     fig.tight_layout()
     out = Path(a.out)
     fig.savefig(out, dpi=110)

@@ -162,7 +162,7 @@ def mbrl_cartpole(out_dir, quick=False, seed=0, n_seeds=None, iterations=20, kl_
         r = results[k][seed]
         X, U = (r.X, r.U) if k == "true" else (r.X_rollout, r.U_rollout)
         lab = "DDP (true model)" if k == "true" else f"{LABELS[k]} (last rollout, with exploration noise)"
-        style = "k-" if k == "true" else "-"
+        style = "-"
         color = "k" if k == "true" else COLORS[k]
         for i in range(4):
             axs[i].plot(tt, X[:, i], style, color=color, lw=1, label=lab)
