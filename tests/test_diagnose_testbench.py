@@ -1,0 +1,93 @@
+"""Issue 16 on the independent generator (drake_est.diagnose.testbench): out-of-vocabulary effects end as
+"unexplained" (with where the structure lies), null logs end with nothing, and the evidence tests that keep
+wrong names out (time-periodic present at every speed, constant-amplitude ripple, energy LPV form)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drake_est.diagnose import diagnose
+from drake_est.diagnose.testbench import generate
+
+
+def _d(effects, **kw):
+    log, truth = generate(effects, **kw)
+    return diagnose(log, robot="generic", simulate=False).to_dict(), truth
+
+
+def test_testbench_positions_not_ahead_of_torque():
+    """q is the trapezoidal integral of the velocity: no built-in delay between torque and position (a
+    cumulative sum put q half a sample ahead, which the time-shift test saw on every null log as a delay of
+    h/2); the time-shift test finds (almost) nothing on a nearly noise-free null log."""
+    from drake_est.diagnose.core import run_diagnosis
+    from drake_est.diagnose.unexplained import _time_shift
+    log, _ = generate({}, seed=2, duration=60, sample_rate=50, noise_std=1e-4)
+    res = run_diagnosis(log, robot="generic")
+    p, share, shift, _ = _time_shift(res.prep, res.final_fit, 1)
+    assert share < 0.05          # with q = cumsum(v) h it was about 0.45
+    log, _ = generate({"delay": 1.0}, seed=2, duration=60, sample_rate=50, noise_std=1e-4)
+    res = run_diagnosis(log, robot="generic")
+    p, share, shift, _ = _time_shift(res.prep, res.final_fit, 1)
+    assert share > 0.3 and p < 1e-6
+
+
+def test_delay_is_unexplained_with_its_shift():
+    d, truth = _d({"delay": 1.0}, seed=11, duration=120, sample_rate=100)
+    assert d["findings"] == []
+    shift = [u for u in d["unexplained"] if u["variable"] == "time_shift_torque_vs_position"]
+    assert shift, d["unexplained"]
+    assert shift[0]["best_shift_s"] == pytest.approx(truth["delay"]["seconds"], abs=0.011)
+    assert shift[0]["share_of_residual_variance"] > 0.08
+
+
+def test_backlash_is_unexplained_not_named():
+    d, _ = _d({"backlash": 1.0}, seed=19, duration=120, sample_rate=50, noise="student_t")
+    assert d["findings"] == []
+    assert d["unexplained"], "backlash left no structure"
+
+
+@pytest.mark.parametrize("noise", ["gaussian", "student_t", "quantized"])
+def test_null_logs_end_empty(noise):
+    d, _ = _d({}, seed=5, duration=90, sample_rate=50, noise=noise, noise_std=0.05)
+    assert d["findings"] == [] and d["unexplained"] == [], (d["findings"], d["unexplained"])
+
+
+def test_null_log_at_10hz_no_left_out_sample_tests():
+    """At 10 Hz the derivative window (7 samples, 0.7 s) smooths the accelerations away: the jerk and
+    time-shift tests do not run and the null log stays clean."""
+    d, _ = _d({}, seed=1059, duration=300, sample_rate=10, noise="quantized", noise_std=0.0803)
+    assert d["unexplained"] == []
+
+
+def test_present_at_all_speeds():
+    from drake_est.diagnose.detectors import present_at_all_speeds
+    rng = np.random.default_rng(0)
+    n = 4000
+    v = np.repeat([0.1, 0.3, 0.6, 1.2], n // 4) * rng.choice([-1, 1], n)
+    t = np.arange(n) * 0.01
+    C = np.column_stack([np.cos(2 * np.pi * 3 * t), np.sin(2 * np.pi * 3 * t)])
+    e = 0.05 * rng.standard_normal(n)
+    assert present_at_all_speeds(C, v, e + 0.1 * C[:, 0])              # everywhere: a disturbance
+    only_fast = np.abs(v) > 1.0
+    assert not present_at_all_speeds(C, v, e + 0.3 * C[:, 0] * only_fast)   # one speed bin only
+    assert present_at_all_speeds(C, np.full(n, 0.5), e + 0.3 * C[:, 0] * only_fast)  # one speed: untestable
+
+
+def test_constant_amplitude_ripple_named_not_position_load():
+    """Ripple + Stribeck on a quantized torque: the ripple (constant amplitude) was fitted with 8 amplitude
+    functions per component and lost to a 64-kernel position load (a wrong name)."""
+    d, _ = _d({"motor_position_ripple": 1.0, "stribeck": 1.0, "_vs": 0.1}, seed=1092, duration=120,
+              sample_rate=50, noise="quantized", noise_std=0.0248)
+    names = {f["effect"] for f in d["findings"]}
+    assert "position_dependent_load" not in names
+    assert "motor_position_ripple" in names
+
+
+def test_energy_drift_not_named_abrupt_change():
+    """The planted warm-up lowers Coulomb and viscous friction; the LPV energy term (9.29) takes both."""
+    d, _ = _d({"energy_dependent_friction": 1.0}, seed=1007, duration=600, sample_rate=50, noise="student_t",
+              noise_std=0.039)
+    names = [f["effect"] for f in d["findings"]]
+    assert names[0] == "energy_dependent_friction"
+    assert "abrupt_change" not in names and "time_periodic_disturbance" not in names
+    assert "gain_k_e_viscous" in d["findings"][0]["parameters"]
