@@ -31,6 +31,8 @@ from drake_est.effects import EFFECTS, EXTRA_EFFECTS  # noqa: F401
 from drake_est.identification.friction.extensions import columns_at, gaussian_features, unit_energy  # noqa: F401
 
 RIPPLE_BASIS = 8
+#: asymmetric Coulomb is a candidate only when each direction holds at least this share of the training samples
+ASYM_MIN_SHARE = 0.05
 #: the ripple scan starts at this many cycles over the position span (slower variation is position-dependent
 #: friction's); 5 lets a 7-per-revolution cogging over one revolution be seen
 RIPPLE_MIN_CYCLES = 5.0
@@ -82,7 +84,10 @@ def _sgn(v):
 def asymmetric(jd, r):
     c = (jd.v[jd.rows] < 0).astype(float)[:, None]
     n_neg = int(np.sum(jd.v[jd.rows][jd.train] < 0))
-    if n_neg < 20 or n_neg > jd.train.sum() - 20:
+    n_tr = int(jd.train.sum())
+    # a direction-dependent Coulomb level needs real motion in both directions: a few reversals inside a
+    # stick-slip of a one-direction sweep (about 1 % of the ODrive cogging samples) are not that
+    if min(n_neg, n_tr - n_neg) < max(20, ASYM_MIN_SHARE * n_tr):
         return None
     return Extension("asymmetric_coulomb", jd.joint, {jd.joint: c}, ["dkc_neg"], {"effect": "asymmetric_coulomb"},
                      {"negative_velocity_samples": n_neg})
