@@ -203,6 +203,8 @@ def _build(case, tmp):
 def _table():
     rows = []
     for line in DOC.read_text().splitlines():
+        if not line.startswith("|"):
+            continue
         cells = [x.strip() for x in line.strip().strip("|").split("|")]
         if len(cells) == 4 and cells[0] not in ("case", "---") and not set(cells[0]) <= {"-"}:
             frag = re.findall(r"`([^`]*)`", cells[3])
