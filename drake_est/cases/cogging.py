@@ -10,7 +10,7 @@
     number of kernels and ridge penalty chosen by contiguous-block CV on the training log only;
   - ``diagnosed``: nominal + the state-dependent extensions that ``diagnose --robot generic``
     accepted on the training log (position-dependent friction, motor-position ripple, asymmetric
-    Coulomb), with their structure (kernel centres, frequencies) from the diagnosis and the
+    Coulomb, Stribeck), with their structure (kernel centres, frequencies) from the diagnosis and the
     coefficients refitted on the whole training log.  Time-dependent findings (abrupt change,
     energy) do not transfer to another log and are left out (listed in the output).
 
@@ -33,7 +33,8 @@ from drake_est.metrics import rmse
 
 TRAIN = "slow2/nocomp_0.npy"
 FOLDERS = ("slow2", "slow_goodgains_2", "slow2_slower")
-TRANSFERABLE = ("position_dependent_friction", "motor_position_ripple", "asymmetric_coulomb", "position_dependent_load")
+TRANSFERABLE = ("position_dependent_friction", "motor_position_ripple", "asymmetric_coulomb", "position_dependent_load",
+                "stribeck")
 N_GRID = (32, 64, 128, 256)
 LAM_GRID = (0.1, 1.0, 10.0)
 
