@@ -91,3 +91,19 @@ def test_energy_drift_not_named_abrupt_change():
     assert names[0] == "energy_dependent_friction"
     assert "abrupt_change" not in names and "time_periodic_disturbance" not in names
     assert "gain_k_e_viscous" in d["findings"][0]["parameters"]
+
+
+def test_change_point_after_energy_must_beat_a_smooth_drift():
+    """After the energy drift is in the model its misfit is smooth in time; a step that only corrects it
+    (here kc 2.20 -> 2.19 at t = 421 s) is not an abrupt change."""
+    d, _ = _d({"energy_dependent_friction": 1.0}, seed=1028, duration=600, sample_rate=10, noise="student_t",
+              noise_std=0.0412)
+    names = [f["effect"] for f in d["findings"]]
+    assert names == ["energy_dependent_friction"], names
+
+
+def test_abrupt_change_with_position_friction_still_named():
+    d, _ = _d({"position_dependent_friction": 1.0, "abrupt_change": 1.0}, seed=1052, duration=120,
+              sample_rate=50, noise="gaussian", noise_std=0.05)
+    names = {f["effect"] for f in d["findings"]}
+    assert names == {"position_dependent_friction", "abrupt_change"}, names

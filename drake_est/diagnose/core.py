@@ -203,7 +203,7 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             F_full = kv * jd.v + kc * np.sign(jd.v)
             out.append(det.energy(jd, r, F_full, fit_train))
         if not have("abrupt_change"):
-            out.append(det.change_point(jd, r))
+            out.append(det.change_point(jd, r, smooth_alternative=have("energy_dependent_friction")))
         if not have("stribeck"):
             out.append(det.stribeck(jd, r, fit_inner))
         if not have("time_periodic_disturbance"):

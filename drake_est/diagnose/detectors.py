@@ -290,9 +290,11 @@ def energy(jd, r, friction_full, fit_train, n_iter=2):
     return ext
 
 
-def change_point(jd, r, min_frac=0.1):
+def change_point(jd, r, min_frac=0.1, smooth_alternative=False):
     """Abrupt change of the friction parameters (Ch. 7): the best single switch of
-    [qd, sign(qd)] parameters over the training samples by dynamic programming (7.8)."""
+    [qd, sign(qd)] parameters over the training samples by dynamic programming (7.8).  With
+    ``smooth_alternative`` None when a smooth (quadratic in time) drift of the same parameters fits the
+    training residual as well by AIC (not abrupt)."""
     from drake_est.errors import DrakeEstError
     from drake_est.identification.ltv import tv_regression_segments
 
@@ -315,6 +317,24 @@ def change_point(jd, r, min_frac=0.1):
     tc = float(0.5 * (ttr[k - 1] + ttr[k]))
     H = (jd.t[rows] >= tc).astype(float)
     C = np.column_stack([v * H, _sgn(v) * H])
+    # with ``smooth_alternative`` (an energy drift is already in the model, so its misfit is smooth in time):
+    # "abrupt" must beat a smooth drift, [qd, sign(qd)] times a quadratic in time (4 parameters; the step has
+    # 2 + its change time), by AIC on the training residual.  Without an accepted drift model the energy
+    # candidate itself is the smooth competitor in the held-out comparison.
+    if not smooth_alternative:
+        spec = {"effect": "abrupt_change", "t_change": tc}
+        ev = {"t_change_s": tc, "segment_params_train": res.params.tolist()}
+        return Extension("abrupt_change", jd.joint, {jd.joint: C}, ["dkv_after", "dkc_after"], spec, ev)
+    tt = jd.t[rows]
+    s_ = (tt - tt[0]) / max(float(np.ptp(tt)), 1e-12)
+    D = np.column_stack([v * s_, _sgn(v) * s_, v * s_ ** 2, _sgn(v) * s_ ** 2])
+    aic = []
+    for X, k_ in ((C, 3), (D, 4)):
+        A = np.hstack([Phi, X])[tr]
+        e = r[tr] - A @ np.linalg.lstsq(A, r[tr], rcond=None)[0]
+        aic.append(tr.sum() * np.log(max(float(e @ e), 1e-300)) + 2 * k_)
+    if aic[1] <= aic[0]:
+        return None
     spec = {"effect": "abrupt_change", "t_change": tc}
     ev = {"t_change_s": tc, "segment_params_train": res.params.tolist()}
     return Extension("abrupt_change", jd.joint, {jd.joint: C}, ["dkv_after", "dkc_after"], spec, ev)
