@@ -113,12 +113,14 @@ def folded_frequencies(ext, jd) -> list:
     return out
 
 
-def _fit_rss(A, y, train, val, n_unpenalized):
-    from drake_est.diagnose.core import _ridge_lstsq
-    c = _ridge_lstsq(A[train], y[train], n_unpenalized)
+def _lstsq(A, y, n_unpenalized):
+    return np.linalg.lstsq(A, y, rcond=None)[0]
+
+
+def _fit_rss(A, y, train, val, n_unpenalized, solve):
+    c = solve(A[train], y[train], n_unpenalized)
     e = y[val] - A[val] @ c
-    r = y[train] - A[train] @ c
-    return float(e @ e), r
+    return float(e @ e)
 
 
 def periodic_nuisance(prep, model, fit, j):
@@ -127,9 +129,8 @@ def periodic_nuisance(prep, model, fit, j):
     previous ones, :func:`~drake_est.diagnose.detectors.time_periodic`) and the ripple components in position
     (:func:`~drake_est.diagnose.detectors.ripple`).  None when there is none."""
     import drake_est.diagnose.detectors as det
-    from drake_est.diagnose.core import _residual
     jd = prep.joints[j]
-    r = _residual(prep, fit, j)
+    r = jd.y - fit.pred[j]
     X = model.design(j)
     shared = model.shared_exts()
     if shared:
@@ -150,12 +151,16 @@ def periodic_nuisance(prep, model, fit, j):
     return np.hstack(cols) if cols else None
 
 
-def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None) -> dict:
+def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None) -> dict:
     """Partial held-out F-test of ``ext`` given the periodic nuisance of its joint (module docstring).
 
+    ``solve(A, y, n_unpenalized)``: the least-squares solver of the search (the diagnosis passes its small
+    relative ridge on the extension columns, Eq. (6.8)); default plain least squares.
     Returns the test dict (``significant``: the candidate still explains held-out variance beyond the
     periodic alternative); ``{"significant": True, "skipped": ...}`` when it does not apply."""
-    from drake_est.diagnose.core import N_NOMINAL
+    from drake_est.diagnose.nominal import nominal_names
+    solve = solve or _lstsq
+    n_nominal = len(nominal_names(prep.robot_kind))
     if ext.effect not in CONFOUNDABLE or ext.shared:
         return {"significant": True, "skipped": "not a smooth speed/time law"}
     j = ext.joint
@@ -169,8 +174,8 @@ def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuis
         X = np.hstack([X] + [e.cols[j] for e in shared])
     A0 = np.hstack([X, N])
     A1 = np.hstack([A0, ext.cols[j]])
-    rss0, _ = _fit_rss(A0, jd.y, jd.train, jd.val, N_NOMINAL)
-    rss1, _ = _fit_rss(A1, jd.y, jd.train, jd.val, N_NOMINAL)
+    rss0 = _fit_rss(A0, jd.y, jd.train, jd.val, n_nominal, solve)
+    rss1 = _fit_rss(A1, jd.y, jd.train, jd.val, n_nominal, solve)
     n = int(jd.val.sum())
     d = ext.n_params
     F = ((rss0 - rss1) / d) / (rss1 / max(n - d, 1))

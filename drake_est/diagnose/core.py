@@ -315,8 +315,8 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
         if ext.effect in comp.CONFOUNDABLE and not ext.shared:
             if ext.joint not in nuisance:
                 nuisance[ext.joint] = comp.periodic_nuisance(prep, model, fit, ext.joint)
-            t = comp.survives_periodic(prep, model, fit, ext, alpha, min_gain, nuisance=nuisance[ext.joint]) \
-                if nuisance[ext.joint] is not None else {"significant": True}
+            t = comp.survives_periodic(prep, model, fit, ext, alpha, min_gain, nuisance=nuisance[ext.joint],
+                                       solve=_ridge_lstsq) if nuisance[ext.joint] is not None else {"significant": True}
             if not t["significant"]:
                 r[1]["significant"] = False
                 r[1]["explained_by_periodic_residual"] = True
