@@ -149,6 +149,10 @@ def test_mbrl_nn_arguments_are_validated(small_pretrained):
         mbrl(None, model, cost, x0, 10, model="ltv", pretrained=small_pretrained)
     with pytest.raises(DataError, match="nn_prior_cov"):
         mbrl(None, model, cost, x0, 10, model="ltv-nn", nn_prior_cov=0.0)
+    with pytest.raises(DataError, match="pretrained: expected a NetworkPrior"):
+        mbrl(None, model, cost, x0, 10, model="ltv-nn-pretrained", pretrained=np.eye(4))
+    with pytest.raises(DataError, match="nn_first_steps"):
+        mbrl(None, model, cost, x0, 10, model="ltv-nn", nn_first_steps=0)
 
 
 def test_fit_ltv_skips_singular_lambdas_and_raises_when_all_are():

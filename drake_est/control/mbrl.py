@@ -230,20 +230,22 @@ def pretrain_network_prior(n_rollouts=20, T=400, seed=0, steps=6000, h=0.01, l=1
 
 def mbrl(true_system, true_model, cost, x0, T, model="ltv", iterations=20, kl_step=400.0, sigma0=1.0,
          lower=-10.0, upper=10.0, seed=0, show_progress=False, kl_increase=2.0, kl_decrease=0.5, kl_max=1e5,
-         nn_prior_cov=None, noise_scale=1.0, lams=None, pretrained=None, nn_sigma_e="ml", nn_steps=200, nn_first_steps=1000):
+         nn_prior_cov=None, noise_scale=1.0, lams=None, pretrained=None, nn_sigma_e="ml", nn_steps=200,
+         nn_first_steps=1000):
     """Algorithm 7 on ``true_system`` (``.rollout(x0, T, policy)``), cost ``cost``, horizon ``T``.
 
     ``model="ltv-nn"``: the LTV fit with the prior of a network (:class:`NetworkPrior`) refit on all data every
-    iteration, prior covariance ``nn_prior_cov`` / iteration (Sec. 11.2; default 1.0); the refit continues from the previous
-    iteration's weights (``nn_first_steps`` mini-batch steps at the first iteration, ``nn_steps`` after).
+    iteration, prior covariance ``nn_prior_cov`` / iteration (Sec. 11.2; default 1.0); the refit continues from
+    the previous iteration's weights (``nn_first_steps`` mini-batch steps at the first iteration, ``nn_steps`` after).
     ``model="ltv-nn-pretrained"``: the prior is the linearization along the current rollout of a network trained
     before learning starts and never updated (``pretrained``, a :class:`NetworkPrior`; default
     :func:`pretrain_network_prior` with seed 0), with the fixed prior covariance ``nn_prior_cov`` (default 10.0).
     Both covariances are per parameter of [A_t B_t c_t] with the data weighted by the ML noise level
     (:func:`fit_ltv`); the defaults were picked on a small grid (seeds 0-5, 8-10 iterations; see
-    docs/readme/ilqr.md).  The KL bound starts at ``kl_step`` and adapts (Levine and Abbeel 2014): multiplied by ``kl_increase``
-    (up to ``kl_max``) after an iteration that lowered the noise-free cost on the true system, by ``kl_decrease``
-    after one that raised it.
+    docs/readme/ilqr.md); ``nn_sigma_e``: the noise level of the data term of the prior fit (``"ml"`` or a
+    number, :func:`fit_ltv`).  The KL bound starts at ``kl_step`` and adapts (Levine and Abbeel 2014):
+    multiplied by ``kl_increase`` (up to ``kl_max``) after an iteration that lowered the noise-free cost on the
+    true system, by ``kl_decrease`` after one that raised it.
 
     ``noise_scale``: the exploration noise is N(0, noise_scale * Q_uu^{-1}) (1: the controller's own covariance
     (11.11)); ``lams``: the lambda grid of the LTV fit (default :func:`fit_ltv`'s).
@@ -254,6 +256,11 @@ def mbrl(true_system, true_model, cost, x0, T, model="ltv", iterations=20, kl_st
         raise DataError(f"model must be one of {MODELS}, got {model!r}")
     if pretrained is not None and model != "ltv-nn-pretrained":
         raise DataError(f"pretrained: a pretrained network is only used by model='ltv-nn-pretrained', got {model!r}")
+    if pretrained is not None and not callable(getattr(pretrained, "linearization", None)):
+        raise DataError("pretrained: expected a NetworkPrior (with .linearization(X, U)), got "
+                        f"{type(pretrained).__name__}")
+    if int(nn_steps) < 1 or int(nn_first_steps) < 1:
+        raise DataError(f"nn_steps and nn_first_steps must be >= 1, got {nn_steps} and {nn_first_steps}")
     if nn_prior_cov is None:      # the values used in the reproduction (drake-est reproduce mbrl-cartpole)
         nn_prior_cov = 10.0 if model == "ltv-nn-pretrained" else 1.0
     if not (np.isfinite(nn_prior_cov) and nn_prior_cov > 0):

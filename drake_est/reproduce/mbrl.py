@@ -176,7 +176,8 @@ def mbrl_cartpole(out_dir, quick=False, seed=0, n_seeds=None, iterations=20, kl_
     fig.savefig(out_dir / "mbrl_cartpole_fig11_2.png", dpi=120)
     plt.close(fig)
 
-    ltv_hit, lti_hit = stats["ltv"]["first_iteration_median_within_5pct"], stats["lti"]["first_iteration_median_within_5pct"]
+    ltv_hit = stats["ltv"]["first_iteration_median_within_5pct"]
+    lti_hit = stats["lti"]["first_iteration_median_within_5pct"]
     out = {
         "J_true_model_ddp": J_opt,
         "n_seeds": n_seeds, "iterations": iterations, "kl_step_initial": kl_step, "noise_scale": float(noise_scale),
@@ -201,7 +202,8 @@ def mbrl_cartpole(out_dir, quick=False, seed=0, n_seeds=None, iterations=20, kl_
         out["nn_prior"] = {"successive_prior_cov_iteration_1": float(nn_prior_cov),
                            "pretrained_prior_cov": float(nn_pretrained_prior_cov), "pretraining": pre_info}
         out["nn_prior_speeds_start_vs_ltv"] = {
-            k: bool(stats[k]["mean_median_ratio_iterations_2_to_5"] < stats["ltv"]["mean_median_ratio_iterations_2_to_5"])
+            k: bool(stats[k]["mean_median_ratio_iterations_2_to_5"]
+                    < stats["ltv"]["mean_median_ratio_iterations_2_to_5"])
             for k in ("ltv-nn", "ltv-nn-pretrained")} if iterations >= 5 else None
     out["wall_seconds"] = time.perf_counter() - t_start
     return out
