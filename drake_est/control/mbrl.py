@@ -70,7 +70,8 @@ def fit_ltv(X, U, lams=None, prior=None, prior_cov=None, sigma_e="ml"):
     (7.15) with covariance ``prior_cov`` (n+m+1, n+m+1) per row, in absolute parameter units; the data term is
     then weighted with the noise standard deviation ``sigma_e``: ``"ml"`` (default) the maximum-likelihood noise
     level of the fit without the prior at the selected lambda (Eqs. (7.16)-(7.18) with the measurement noise
-    of the data), or a number.  Returns (LtvModel, lambda)."""
+    of the data), or a number; if the prior fit at the most likely lambda is numerically singular, the next most
+    likely lambda is used (IdentifiabilityError if none works).  Returns (LtvModel, lambda)."""
     from drake_est.identification.ltv import ltv_smoother
     if isinstance(sigma_e, str) and sigma_e != "ml":
         raise DataError(f"sigma_e must be 'ml' or a positive number, got {sigma_e!r}")
