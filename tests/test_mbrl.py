@@ -202,3 +202,20 @@ def test_reproduce_mbrl_cartpole_tiny_runs_all_variants(tmp_path):
     assert all(len(v["median_cost"]) == 5 for v in r["variants"].values())
     assert (tmp_path / "mbrl_cartpole_fig11_1.png").stat().st_size > 10_000
     assert r["wall_seconds"] > 0 and r["nn_prior"]["pretraining"]["gradient_steps"] == 6000
+
+
+def test_readme_mbrl_tables_are_printed_from_the_measured_json():
+    """docs/readme/ilqr.md holds exactly the tables that `variants_markdown` makes of the kept JSON runs."""
+    import json
+    from pathlib import Path
+
+    from drake_est.reproduce.mbrl import variants_markdown
+
+    root = Path(__file__).resolve().parents[1]
+    doc = (root / "docs" / "readme" / "ilqr.md").read_text()
+    for name, label in (("mbrl-cartpole_seeds0-19.json", "seeds 0–19"),
+                        ("mbrl-cartpole_seeds100-119.json", "seeds 100–119")):
+        res = json.loads((root / "benchmarks" / "results" / "mbrl" / name).read_text())
+        table = variants_markdown(res, label)
+        assert table in doc, f"the README table for {name} is not what the JSON gives"
+        assert res["acceptance_ltv_within_5pct_in_20_and_lti_not"] is True

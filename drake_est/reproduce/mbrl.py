@@ -210,3 +210,43 @@ def mbrl_cartpole(out_dir, quick=False, seed=0, n_seeds=None, iterations=20, kl_
 
 
 EXPERIMENTS = {"mbrl-cartpole": mbrl_cartpole}
+
+_ROW_NAMES = {"ltv": "LTV (7.5)", "lti": "LTI", "ltv-nn": "LTV + successive NN prior (`ltv-nn`)",
+              "ltv-nn-pretrained": "LTV + pretrained NN prior (`ltv-nn-pretrained`)"}
+
+
+def variants_markdown(result: dict, label: str = "") -> str:
+    """The README's Fig. 11.1 table, made from the JSON that :func:`mbrl_cartpole` returns (so that the
+    README's numbers are the measured ones): per model the median cost / DDP at iterations 2, 3, 5, 10 and the
+    last, the first iteration of the median curve within 5 % (with its ratio), the median over seeds of the
+    first iteration within 5 %, how many seeds get there, and the mean median ratio over iterations 2-5."""
+    var = result["variants"]
+    its = [i for i in (2, 3, 5, 10) if i < result["iterations"]] + [result["iterations"]]
+    head = (f"| model ({result['n_seeds']} seeds{', ' + label if label else ''}) | median cost / DDP at iteration "
+            f"{', '.join(map(str, its))} | first iteration of the median curve within 5 % | median over seeds of "
+            "the first iteration within 5 % | seeds within 5 % | mean median ratio, iterations 2–5 |")
+    rows = [head, "|---|---|---|---|---|---|"]
+    for k, name in _ROW_NAMES.items():
+        if k not in var:
+            continue
+        v = var[k]
+        r = v["median_ratio"]
+        ratios = ", ".join(f"{r[i - 1]:.3g}" for i in its[:-1]) + f", {r[its[-1] - 1]:.4g}"
+        hit = v["first_iteration_median_within_5pct"]
+        first = f"never (best {v['best_median_ratio']:.4g})" if hit is None else f"{hit} ({r[hit - 1]:.3f} ×)"
+        med = v["median_over_seeds_first_iteration_within_5pct"]
+        med = "never" if med is None else f"{med:g}"
+        rows.append(f"| {name} | {ratios} | {first} | {med} | {v['seeds_within_5pct']} | "
+                    f"{v['mean_median_ratio_iterations_2_to_5']:.4g} |")
+    return "\n".join(rows)
+
+
+if __name__ == "__main__":  # python -m drake_est.reproduce.mbrl --markdown FILE.json [LABEL]
+    import argparse
+    import json
+
+    ap = argparse.ArgumentParser(description="Print the README's Fig. 11.1 table from a mbrl-cartpole JSON.")
+    ap.add_argument("--markdown", required=True, metavar="JSON")
+    ap.add_argument("label", nargs="?", default="")
+    a = ap.parse_args()
+    print(variants_markdown(json.loads(Path(a.markdown).read_text()), a.label))
