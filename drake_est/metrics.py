@@ -42,6 +42,9 @@ def fit_percent(y, yhat) -> float:
     for j in range(y2.shape[1]):
         den = np.linalg.norm(y2[:, j] - y2[:, j].mean())
         fits.append(100.0 * (1.0 - np.linalg.norm(e2[:, j]) / den) if den > 0 else np.nan)
+    fits = np.asarray(fits, dtype=float)
+    if not np.any(np.isfinite(fits)):
+        return float("nan")       # constant targets: Fit is undefined (no RuntimeWarning of nanmean)
     return float(np.nanmean(fits))
 
 

@@ -54,6 +54,22 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    import warnings
+
+    def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+        # a Python warning is one stderr line like the project's own warnings (not file:line + source)
+        print(f"drake-est {args.command}: warning: {category.__name__}: {str(message).splitlines()[0][:300]}",
+              file=sys.stderr)
+
+    old_show = warnings.showwarning
+    warnings.showwarning = _one_line_warning
+    try:
+        return _dispatch(parser, args)
+    finally:
+        warnings.showwarning = old_show
+
+
+def _dispatch(parser, args) -> int:
     try:
         rc = args.func(args)
     except DrakeEstError as err:

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from drake_est.errors import DataError
 
 
@@ -66,6 +68,11 @@ def run(args) -> int:
         seen[key] = p
     logs = [load_log_checked(p, args.robot, "diagnose", nan_policy="drop" if args.drop_invalid else "raise")
             for p in paths]
+    for p, lg in zip(paths, logs):
+        for c, j in enumerate(lg.joints):
+            if (joints is None or j in joints) and lg.tau is not None and not np.ptp(lg.tau[:, c]) > 0:
+                raise DataError(f"{p}: column tau{j} is constant ({lg.tau[0, c]:g}): no torque was logged for joint "
+                                f"{j}; leave it out with --joints")
     if len(logs) == 1:
         log = logs[0]
     else:

@@ -78,6 +78,12 @@ def run(args) -> int:
                         gear_ratio=args.gear_ratio, holdout=args.holdout, v_min=args.v_min, a_max=args.a_max,
                         n_position=args.n_position, width_factor=args.width_factor,
                         energy_iters=args.energy_iters)
+    import numpy as np
+
+    tau_j = log.tau[:, log.joints.index(info["joint"])] if info.get("joint") in log.joints else None
+    if tau_j is not None and not np.ptp(tau_j) > 0:
+        raise DrakeEstError(f"column tau{info['joint']} is constant ({tau_j[0]:g} N m): no torque was logged for "
+                            f"joint {info['joint']}, there is no friction to fit")
     out.mkdir(parents=True, exist_ok=True)
     print(f"joint {info['joint']}: model '{args.model}' ({res.model.n_params} linear parameters"
           f"{', rigid-body torque subtracted (' + info['robot'] + ')' if info['rigid_body_subtracted'] else ''})")
@@ -94,6 +100,11 @@ def run(args) -> int:
     sel = doc.get("selection")
     if isinstance(sel, dict) and "a_max" in sel:
         sel["a_max"] = finite_or_none(sel["a_max"])   # no acceleration limit: null, not Infinity
+    from drake_est.jsonutil import nonfinite_to_null
+
+    doc, undefined = nonfinite_to_null(doc)      # e.g. a Fit of a constant validation part: null, listed
+    if undefined:
+        doc["undefined_numbers"] = undefined
     dump_json(doc, out / "params.json")
     if not args.no_plots:
         plot_result(res, out, title=f"joint {info['joint']}, model {args.model}")

@@ -225,7 +225,8 @@ def _test(prep, fit0, fit1, ext):
     rss0 = sum(fit0.rss_val[j] for j in js)
     rss1 = sum(fit1.rss_val[j] for j in js)
     d = ext.n_params
-    F = ((rss0 - rss1) / d) / (rss1 / max(n - d, 1))
+    den = rss1 / max(n - d, 1)
+    F = ((rss0 - rss1) / d) / den if den > 0 else (np.inf if rss0 > rss1 else 0.0)   # exact fit: rss1 = 0
     p = float(scipy.stats.f.sf(F, d, max(n - d, 1))) if F > 0 else 1.0
     gain = 1.0 - np.sqrt(rss1 / rss0) if rss0 > 0 else 0.0
     score = float(sum(prep.joints[j].val.sum() * np.log(fit0.rss_val[j] / max(fit1.rss_val[j], 1e-300))

@@ -249,7 +249,7 @@ class DiagnosisReport:
         for j, r in d["data"]["skipped_joints"].items():
             lines.append(f"  joint {j} skipped: {r}")
         nv = d["nominal"]["validation"]
-        lines.append(f"nominal model: held-out RMSE {nv['rmse']:.4g} {u}, Fit {nv['fit']:.1f} %")
+        lines.append(f"nominal model: held-out RMSE {_num(nv['rmse'], '.4g')} {u}, Fit {_num(nv['fit'], '.1f')} %")
         if not d["findings"]:
             lines.append("no finding: the nominal model explains the held-out data (no extension passed the test)")
         for f in d["findings"]:
@@ -295,6 +295,11 @@ def _fmt(x):
     return str(x)
 
 
+def _num(x, spec):
+    """A number of the report as text; None (undefined, written as null) as 'undefined'."""
+    return "undefined" if x is None else format(x, spec)
+
+
 def markdown(d: dict) -> str:
     """Human-readable account of a report dict."""
     L = ["# Model-discrepancy diagnosis", ""]
@@ -310,8 +315,8 @@ def markdown(d: dict) -> str:
                  + (f", {c['thinned']} thinned" if c.get("thinned") else ""))
     L += ["", f"Validation: {da['split']}.", "", "## What the simulation gets wrong", ""]
     nv = d["nominal"]["validation"]
-    L.append(f"The nominal model ({d['nominal']['model']}) leaves a held-out RMSE of **{nv['rmse']:.4g} {u}** "
-             f"(MAE {nv['mae']:.4g}, Fit {nv['fit']:.1f} %, FPE {nv['fpe']:.4g}).")
+    L.append(f"The nominal model ({d['nominal']['model']}) leaves a held-out RMSE of **{_num(nv['rmse'], '.4g')} {u}** "
+             f"(MAE {nv['mae']:.4g}, Fit {_num(nv['fit'], '.1f')} %, FPE {nv['fpe']:.4g}).")
     for j, p in d["nominal"]["parameters"].items():
         L.append(f"- joint {j}: " + ", ".join(f"{k} = {_fmt(v)}" for k, v in p.items()))
     files = d.get("files", [])
@@ -356,7 +361,7 @@ def markdown(d: dict) -> str:
     fv = d["final"]["validation"]
     L += ["## The extended model", "",
           f"Effects: {', '.join(d['final']['effects']) or 'none (nominal)'}; held-out RMSE **{fv['rmse']:.4g} {u}** "
-          f"(nominal {nv['rmse']:.4g}), gain x{d['final']['gain']['rmse_ratio']:.3g}."]
+          f"(nominal {_num(nv['rmse'], '.4g')}), gain x{d['final']['gain']['rmse_ratio']:.3g}."]
     if d.get("logs"):
         L += ["", "## Logs", "", "| log | file | role | joint | samples | nominal RMSE | final RMSE | reduction |",
               "|---|---|---|---|---|---|---|---|"]
