@@ -195,6 +195,10 @@ def _build(case, tmp):
         return synth + ["--noise", "inf"]
     if case == "spectrum_gear_inf":
         return ["spectrum", str(_csv(f, c)), "--signal", "tau1", "--position", "q1", "--gear-ratio", "inf"] + out
+    if case == "tau_constant_diagnose":
+        return ["diagnose", str(_csv(f, _with(c, tau1=0.0 * c["tau1"]))), "--no-simulation"] + out
+    if case == "tau_constant_friction":
+        return ["fit-friction", str(_csv(f, _with(c, tau1=0.0 * c["tau1"]))), "--no-plots"] + out
     if case == "friction_holdout":
         return ["fit-friction", str(_csv(f, c)), "--holdout", "0.001"] + out
     raise KeyError(case)
@@ -411,3 +415,19 @@ def test_robot_option_errors(tmp_path, capsys):
         assert main(["check", log, "--robot", robot]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and frag in err, err
+
+
+def test_diagnose_exact_fit_and_undefined_numbers():
+    """Long-fuzz escapes: the F test of an exact fit (rss1 = 0) and report text of a null (undefined) RMSE."""
+    from types import SimpleNamespace
+
+    from drake_est.diagnose.core import _test
+    from drake_est.diagnose.report import _num
+
+    prep = SimpleNamespace(joints={1: SimpleNamespace(val=np.ones(50, bool))})
+    fit0 = SimpleNamespace(rss_val={1: 2.0})
+    fit1 = SimpleNamespace(rss_val={1: 0.0})
+    out = _test(prep, fit0, fit1, SimpleNamespace(cols=[1], n_params=3))
+    assert out["p_value"] == 0.0 and out["rmse_reduction"] == 1.0 and out["F"] == float("inf")
+    assert _test(prep, fit0, fit0, SimpleNamespace(cols=[1], n_params=3))["p_value"] == 1.0
+    assert _num(None, ".4g") == "undefined" and _num(1.23456, ".4g") == "1.235"
