@@ -83,6 +83,7 @@ def test_constant_amplitude_ripple_named_not_position_load():
     assert "motor_position_ripple" in names
 
 
+@pytest.mark.slow
 def test_energy_drift_not_named_abrupt_change():
     """The planted warm-up lowers Coulomb and viscous friction; the LPV energy term (9.29) takes both."""
     d, _ = _d({"energy_dependent_friction": 1.0}, seed=1007, duration=600, sample_rate=50, noise="student_t",
