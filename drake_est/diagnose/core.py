@@ -290,9 +290,10 @@ def _competition(ext, tst, results, prep=None) -> dict:
     out = {"runner_up": e2.effect, "runner_up_joint": int(e2.joint), "runner_up_score": float(t2["score"]),
            "runner_up_significant": bool(t2["significant"]), "margin": margin,
            "ambiguous": bool(t2["significant"] and margin < AMBIGUITY_MARGIN)}
-    if prep is not None and t2["significant"] and not out["ambiguous"]:
-        # a coarse torque ADC: when the winner's and the runner-up's held-out predictions differ by less than
-        # one quantization step, what separates them is the deterministic rounding error, not evidence
+    if prep is not None and t2["significant"] and not out["ambiguous"] and ext.n_params > e2.n_params:
+        # a coarse torque ADC: when the winner has more parameters than the runner-up and their held-out
+        # predictions differ by less than one quantization step, what puts the more flexible one ahead is the
+        # deterministic rounding error, not evidence (a simpler winner stands: parsimony)
         f1 = next(f for e, _, f, _ in results if e is ext)
         f2 = next(f for e, t, f, _ in results if e is e2)
         for j in js & set(e2.cols):
