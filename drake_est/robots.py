@@ -87,7 +87,10 @@ def _add_payload(plant: MultibodyPlant, model, flange_frame: str, mass: float, c
 _URDF_NUMBERS = {"mass": {"value": 1}, "inertia": {k: 1 for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")},
                  "origin": {"xyz": 3, "rpy": 3}, "axis": {"xyz": 3},
                  "limit": {"lower": 1, "upper": 1, "velocity": 1, "effort": 1},
-                 "dynamics": {"damping": 1, "friction": 1}}
+                 "dynamics": {"damping": 1, "friction": 1},
+                 "cylinder": {"radius": 1, "length": 1}, "capsule": {"radius": 1, "length": 1},
+                 "sphere": {"radius": 1}, "box": {"size": 3}, "mesh": {"scale": 3}}
+_URDF_POSITIVE = {"cylinder", "capsule", "sphere", "box", "mesh"}   # shape sizes: Drake aborts on <= 0
 URDF_MAX_ABS = 1e9   # no robot has a length, mass, inertia or limit beyond this in SI units
 
 
@@ -135,6 +138,8 @@ def validate_urdf(path) -> None:
                 if not np.all(np.isfinite(v)) or np.any(np.abs(v) > URDF_MAX_ABS):
                     raise DataError(f"robot model {path}: {who}: <{el.tag} {attr}=\"{raw[:40]}\"> must be finite "
                                     f"and within +-{URDF_MAX_ABS:.0e}")
+                if el.tag in _URDF_POSITIVE and not np.all(v > 0):
+                    raise DataError(f"robot model {path}: {who}: <{el.tag} {attr}=\"{raw[:40]}\"> must be > 0")
                 vals[(el.tag, attr)] = v
         _check_urdf_physics(path, who, vals)
 
@@ -197,7 +202,8 @@ def add_robot(builder: DiagramBuilder, urdf, time_step: float = 0.0, base_link: 
         model = _build_model(plant, parser, urdf, base_link, payload, flange_frame, rotor)
     except DataError:
         raise
-    except Exception as err:  # noqa: BLE001 - Drake: RuntimeError with a long text (parse, loops, Finalize)
+    except (Exception, SystemExit) as err:  # noqa: BLE001 - Drake: RuntimeError with a long text (parse, loops,
+        # Finalize); a failed C++ assertion ("Failure at ...") reaches Python as SystemExit
         first = (str(err).strip().splitlines() or [type(err).__name__])[0]
         raise DataError(f"cannot load robot model {urdf}: {first[:200]}") from None
     return plant, scene_graph, model

@@ -168,6 +168,8 @@ def _build(case, tmp):
             joint2.find("limit").set("lower", "2.5")
         elif case == "urdf_missing_joint":
             root.remove(joint2)
+        elif case == "urdf_zero_cylinder":
+            link1.find("visual/geometry/cylinder").set("length", "0")
         text = ET.tostring(root, encoding="unicode")
         if case == "urdf_truncated":
             text = text[:len(text) // 2]
