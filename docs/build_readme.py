@@ -2,7 +2,7 @@
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent / "readme"
-ORDER = ["_head.md", "_results.md", "diagnose.md", "fleet.md", "friction.md", "friction_model.md", "spectral.md",
+ORDER = ["_head.md", "_results.md", "diagnose.md", "diagnose_testbench.md", "fleet.md", "friction.md", "friction_model.md", "spectral.md",
          "spectral_nufft.md", "ltv.md", "estimation.md", "particle_filter.md", "seam.md", "ilqr.md", "nn.md",
          "calibration.md", "real_data.md", "real_cogging.md", "real_calibration.md", "hardening.md",
          "builders.md", "_foundation.md", "_roadmap.md"]
