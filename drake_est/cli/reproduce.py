@@ -14,6 +14,9 @@ def register(sub):
     p.add_argument("--quick", action="store_true", help="smaller sizes for a fast look (numbers differ from the thesis setting)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--data", default=None, help="folder with the real data sets (real-* experiments; default ../shared/data)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="parallel worker processes for experiments that run many seeds (default: their own, "
+                        "at most the local cores)")
     p.set_defaults(func=run)
 
 
@@ -42,6 +45,16 @@ def run(args) -> int:
             raise DrakeEstError(f"--data folder {args.data} not found")
         if not Path(args.data).is_dir():
             raise DrakeEstError(f"--data {args.data} is not a folder")
+    par = None
+    if args.workers is not None:
+        import inspect
+
+        check_number("--workers", args.workers, 1, 1024, integer=True)
+        params = inspect.signature(exps[args.name]).parameters
+        par = next((k for k in ("workers", "jobs") if k in params), None)
+        if par is None:
+            raise DrakeEstError(f"--workers is only used by experiments that run seeds in parallel; "
+                                f"'{args.name}' runs in one process")
     out = Path(args.out or f"reproduce-{args.name}")
     if out.exists() and not out.is_dir():
         raise DrakeEstError(f"--out {out} exists and is not a folder")
@@ -49,6 +62,8 @@ def run(args) -> int:
     kwargs = dict(out_dir=out, quick=args.quick, seed=args.seed)
     if args.data is not None:
         kwargs["data_dir"] = args.data
+    if par is not None:
+        kwargs[par] = args.workers
     result = exps[args.name](**kwargs)
     path = out / f"{args.name}.json"
     if isinstance(result, dict):
