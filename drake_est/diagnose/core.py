@@ -88,6 +88,18 @@ class Model:
             blocks.append(extra)
         return np.hstack(blocks)
 
+    def penalized(self, j) -> np.ndarray:
+        """Which columns of :meth:`design` carry the ridge: not the nominal ones, and not the gravity/spring
+        harmonics sin q, cos q of a position-dependent load (physical, well conditioned columns whose
+        coefficient may be hundreds of times the noise, where a relative ridge would leave a visible error)."""
+        mask = [np.zeros(N_NOMINAL, bool)]
+        for e in self.own(j):
+            m = np.ones(e.cols[j].shape[1], bool)
+            if e.spec.get("gravity_harmonic"):
+                m[:2] = False
+            mask.append(m)
+        return np.concatenate(mask)
+
     def fit(self, sigma=None) -> Fit:
         prep = self.prep
         shared = self.shared_exts()
@@ -97,7 +109,7 @@ class Model:
         if not shared:
             for j, jd in prep.joints.items():
                 X = self.design(j)
-                c = _ridge_lstsq(X[jd.train], jd.y[jd.train], N_NOMINAL)
+                c = _ridge_lstsq(X[jd.train], jd.y[jd.train], self.penalized(j))
                 coef[j] = c
                 pred[j] = X @ c
                 n_params += X.shape[1]
@@ -119,8 +131,8 @@ class Model:
                 rows_y.append(w * jd.y[jd.train])
             A = np.vstack(rows_A)
             pen = np.ones(P, dtype=bool)
-            for k in range(len(js)):
-                pen[offs[k]:offs[k] + N_NOMINAL] = False
+            for k, j in enumerate(js):
+                pen[offs[k]:offs[k + 1]] = self.penalized(j)
             c = _ridge_lstsq(A, np.concatenate(rows_y), pen)
             for k, j in enumerate(js):
                 coef[j] = c[offs[k]:offs[k + 1]]
@@ -306,6 +318,15 @@ def _competition(ext, tst, results, prep=None) -> dict:
     return out
 
 
+def _model_solver(model, j):
+    """``solve(A, y, n)`` for :func:`~drake_est.diagnose.competition.survives_periodic`: the search's ridge with the
+    model's own penalty mask on its first columns (:meth:`Model.penalized`), every column after them penalized."""
+    def solve(A, y, _n):
+        m = model.penalized(j)
+        return _ridge_lstsq(A, y, np.concatenate([m, np.ones(A.shape[1] - m.size, bool)]))
+    return solve
+
+
 def _best_surviving(prep, model, fit, sig, alpha, min_gain):
     """The best significant candidate that is not a smooth speed/time law merely absorbing a periodic
     residual (:func:`~drake_est.diagnose.competition.survives_periodic`); (None, [...]) when none is left.
@@ -318,7 +339,7 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
             if ext.joint not in nuisance:
                 nuisance[ext.joint] = comp.periodic_nuisance(prep, model, fit, ext.joint)
             t = comp.survives_periodic(prep, model, fit, ext, alpha, min_gain, nuisance=nuisance[ext.joint],
-                                       solve=_ridge_lstsq) if nuisance[ext.joint] is not None else {"significant": True}
+                                       solve=_model_solver(model, ext.joint)) if nuisance[ext.joint] is not None else {"significant": True}
             if not t["significant"]:
                 r[1]["significant"] = False
                 r[1]["explained_by_periodic_residual"] = True

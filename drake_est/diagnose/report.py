@@ -114,7 +114,10 @@ def effect_parameters(result, ext, model, fit) -> dict:
     elif ext.effect == "position_dependent_load":
         from drake_est.diagnose.detectors import gaussian_features
         qq = np.linspace(*ext.evidence["range_rad"], 200)
-        load = gaussian_features(qq, np.asarray(ext.spec["centers"]), ext.spec["width"]) @ c
+        G = gaussian_features(qq, np.asarray(ext.spec["centers"]), ext.spec["width"])
+        if ext.spec.get("gravity_harmonic"):      # [sin q, cos q] first (detectors.position_load)
+            G = np.hstack([np.column_stack([np.sin(qq), np.cos(qq)]), G])
+        load = G @ c
         d = {"n_kernels": ext.evidence["n_kernels"], "kernel_width_rad": ext.spec["width"],
              "load_range_nm": [float(load.min()), float(load.max())]}
     elif ext.effect == "gear_coupling":

@@ -84,7 +84,8 @@ def columns_at(spec, q, v, t, others=None, E_unit=None, sign=None):
     if kind == "position_dependent_friction":
         return s[:, None] * gaussian_features(q, np.asarray(spec["centers"]), spec["width"])
     if kind == "position_dependent_load":
-        return gaussian_features(q, np.asarray(spec["centers"]), spec["width"])
+        G = gaussian_features(q, np.asarray(spec["centers"]), spec["width"])
+        return np.hstack([np.column_stack([np.sin(q), np.cos(q)]), G]) if spec.get("gravity_harmonic") else G
     if kind == "stribeck":
         return (s * np.exp(-np.abs(v / spec["vs"]) ** spec["delta"]))[:, None]
     if kind == "time_periodic_disturbance":
@@ -181,7 +182,7 @@ class ExtensionTerm(Term):
              "time_periodic_disturbance": 2 * len(self.spec.get("frequencies_hz", [0]))}.get(self.effect)
         if n is None:
             if self.effect in ("position_dependent_friction", "position_dependent_load"):
-                n = len(self.spec["centers"])
+                n = len(self.spec["centers"]) + (2 if self.spec.get("gravity_harmonic") else 0)
             elif self.effect == "gear_coupling":
                 n = 2 * len(self.spec["coupled_joints"])
             elif self.effect == "motor_position_ripple":
