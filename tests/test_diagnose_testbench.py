@@ -108,3 +108,20 @@ def test_abrupt_change_with_position_friction_still_named():
               sample_rate=50, noise="gaussian", noise_std=0.05)
     names = {f["effect"] for f in d["findings"]}
     assert names == {"position_dependent_friction", "abrupt_change"}, names
+
+
+def test_readme_testbench_counts_are_the_measured_ones():
+    """The README's final-code row holds the counts that the benchmark's summarize() gives for the kept JSON."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    s = mod.summarize(json.loads((root / "benchmarks" / "results" / "diagnose_testbench.json").read_text())["rows"])
+    row = (f"| final code, after item 6 (`diagnose_testbench.json`) | **{s['correct']}** | **{s['wrong_names']}** | "
+           f"{s['missed']} | **{s['oov_unexplained_right']} / {s['oov_logs']}** | "
+           f"**{s['null_logs_clean']} / {s['null_logs']}** |")
+    assert row in (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
