@@ -45,6 +45,30 @@ def require_module():
     return _require_module
 
 
+BROWSER_SHOT = Path(__file__).resolve().parents[2] / "shared" / "browser" / "shot"
+
+
+def browser_shot():
+    """The headless-Chromium renderer ``../shared/browser/shot`` (it needs node), or None when absent; under
+    CI=true its absence fails the running test."""
+    import shutil
+
+    if BROWSER_SHOT.exists() and shutil.which("node"):
+        return BROWSER_SHOT
+    if CI:
+        unavailable("headless browser ../shared/browser/shot not available")
+    return None
+
+
+@pytest.fixture
+def require_browser():
+    """The path of ``../shared/browser/shot``; skipped locally / failed under CI=true when absent."""
+    shot = browser_shot()
+    if shot is None:
+        unavailable("headless browser ../shared/browser/shot not available")
+    return shot
+
+
 @pytest.fixture
 def require_data():
     """``require_data("emps/DATA_EMPS.mat")`` -> the path under the data folder; skipped locally / failed

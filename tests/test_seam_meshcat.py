@@ -2,11 +2,8 @@
 laser stripes and the particle cloud over time; the live Meshcat of the Diagram updates them during the run."""
 import base64
 import json
-import os
 import re
-import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,8 +12,6 @@ from drake_est.seam import viz
 from drake_est.seam.analysis import filter_config_for, write_meshcat_html
 from drake_est.seam.seam import thesis_seam
 from drake_est.seam.simulate import ScenarioConfig, make_scenario, run_loop
-
-BROWSER = Path(__file__).resolve().parents[2] / "shared" / "browser" / "shot"
 
 
 @pytest.fixture(scope="module")
@@ -112,17 +107,13 @@ def test_write_meshcat_html_rejects_too_few_frames(short_run, tmp_path):
 
 
 @pytest.mark.slow
-def test_replay_renders_in_a_real_browser(short_run, tmp_path):
+def test_replay_renders_in_a_real_browser(short_run, tmp_path, require_browser):
     """seam.html in headless Chromium: no page errors, and the picture shows the red seam and green stripes."""
-    if not (BROWSER.exists() and shutil.which("node")):
-        if os.environ.get("CI") == "true":
-            pytest.fail("headless browser ../shared/browser/shot not available under CI")
-        pytest.skip("headless browser ../shared/browser/shot not available")
     import matplotlib.image as mpimg
     scn, cfg, res = short_run
     path = write_meshcat_html(scn, res, cfg, tmp_path / "seam.html")
     png = tmp_path / "seam.png"
-    p = subprocess.run([str(BROWSER), str(path), str(png), "--wait-ms", "3000"], capture_output=True, text=True,
+    p = subprocess.run([str(require_browser), str(path), str(png), "--wait-ms", "3000"], capture_output=True, text=True,
                        timeout=300)
     info = json.loads(p.stdout.strip().splitlines()[-1])
     assert p.returncode == 0 and info["page_errors"] == [], p.stdout + p.stderr
