@@ -89,16 +89,7 @@ def main(argv=None):
           f"{out['realtime_factor_cpu']:.2f}x (CPU); load average {out['load_average_1min']:.1f}",
           file=sys.stderr)
     if a.speed_only:
-        print(json.dumps(out, indent=1))
-        if a.json:
-            from drake_est.jsonutil import dump_json
-            dump_json(out, a.json)
-        if a.check:
-            missed = check(out)
-            for m in missed:
-                print("MISSED:", m, file=sys.stderr)
-            return 1 if missed else 0
-        return 0
+        return _report(out, a)
     with ProcessPoolExecutor(a.workers) as ex:
         res = list(progress(ex.map(_accuracy, range(a.seeds), [a.particles] * a.seeds), total=a.seeds,
                             desc="seeds"))
@@ -108,16 +99,19 @@ def main(argv=None):
     out["orientation_rmse_deg"] = q([r[0]["orientation_rmse_deg"] for r in res])
     out["along_seam_rmse_mm"] = q([r[0]["along_seam_rmse_mm"] for r in res])
     out["n_degenerate_total"] = int(sum(r[0]["n_degenerate"] for r in res))
+    return _report(out, a)
+
+
+def _report(out, a) -> int:
+    """Print the figures, write them to ``--json``, and with ``--check`` return 1 when a target is missed."""
     print(json.dumps(out, indent=1))
     if a.json:
         from drake_est.jsonutil import dump_json
         dump_json(out, a.json)
-    if a.check:
-        missed = check(out)
-        for m in missed:
-            print("MISSED:", m, file=sys.stderr)
-        return 1 if missed else 0
-    return 0
+    missed = check(out) if a.check else []
+    for m in missed:
+        print("MISSED:", m, file=sys.stderr)
+    return 1 if missed else 0
 
 
 def check(out):

@@ -1,6 +1,7 @@
 """``drake-est reproduce NAME``: rerun a thesis experiment, write PNGs and a JSON of numbers."""
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 from drake_est.errors import DrakeEstError
@@ -36,10 +37,9 @@ def run(args) -> int:
     from drake_est.cli._common import check_number
 
     check_number("--seed", args.seed, 0, 2**32 - 1, integer=True)
+    params = inspect.signature(exps[args.name]).parameters
     if args.data is not None:
-        import inspect
-
-        if "data_dir" not in inspect.signature(exps[args.name]).parameters:
+        if "data_dir" not in params:
             raise DrakeEstError(f"--data is only used by the real-data experiments; '{args.name}' does not read it")
         if not Path(args.data).exists():
             raise DrakeEstError(f"--data folder {args.data} not found")
@@ -47,10 +47,7 @@ def run(args) -> int:
             raise DrakeEstError(f"--data {args.data} is not a folder")
     par = None
     if args.workers is not None:
-        import inspect
-
         check_number("--workers", args.workers, 1, 1024, integer=True)
-        params = inspect.signature(exps[args.name]).parameters
         par = next((k for k in ("workers", "jobs") if k in params), None)
         if par is None:
             raise DrakeEstError(f"--workers is only used by experiments that run seeds in parallel; "
