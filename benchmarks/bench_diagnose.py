@@ -205,66 +205,8 @@ def timing(cache: Path, out: Path):
 # ----------------------------------------------------------------------------- an independent generator
 
 
-def axis_log(effect: str, seed: int, duration: float = 180.0, sample_rate: float = 100.0, noise_std: float = 0.3,
-             dt: float | None = None):
-    """A generator independent of :mod:`drake_est.synth`: one rotary axis (inertia J) under a PI velocity
-    controller tracking trapezoidal sweeps, semi-implicit Euler at ``dt``, encoder quantization, torque noise.
-    Effects are shaped differently from synth's: position dependence is a sum of sines in q, the ripple
-    has gear 83 and a constant amplitude, the energy state is driven by |F v| with its own constants.
-    Returns ``(Log with t, q1, tau1 only, truth dict)``."""
-    from drake_est.data import Log
-    rng = np.random.default_rng(seed)
-    J = rng.uniform(0.5, 4.0)
-    kc, kv = rng.uniform(2.0, 10.0), rng.uniform(0.5, 5.0)
-    dt = dt or min(1.0 / sample_rate, 0.002)
-    n = int(round(duration / dt))
-    lo, hi = -rng.uniform(1.0, 2.5), rng.uniform(1.0, 2.5)
-    levels = rng.uniform(0.1, 1.0, 6)
-    t_change = rng.uniform(0.35, 0.65) * duration
-    jump = rng.choice([0.6, 1.5])
-    tau_e, k_e = rng.uniform(0.1, 0.25) * duration, -rng.uniform(0.3, 0.6) * kc / (0.5 * kc)
-    ph = rng.uniform(0, 2 * np.pi, 3)
-    q, v, E, integ = 0.0, 0.0, 0.0, 0.0
-    direction, vcmd, vref = 1.0, levels[0], 0.0
-    every = max(1, int(round(1.0 / (sample_rate * dt))))
-    T, Qs, Us = [], [], []
-    for k in range(n):
-        tk = k * dt
-        if (direction > 0 and q >= hi) or (direction < 0 and q <= lo):
-            direction = -direction
-            vcmd = levels[rng.integers(len(levels))]
-        vref += np.clip(direction * vcmd - vref, -2.0 * dt, 2.0 * dt)
-        level = kc
-        if effect == "position_dependent_friction":
-            level += 0.3 * kc * np.sin(2.3 * q + ph[0]) + 0.15 * kc * np.sin(5.1 * q + ph[1])
-        if effect == "asymmetric_coulomb" and v < 0:
-            level *= 1.5
-        kv_k = kv
-        if effect == "abrupt_change" and tk >= t_change:
-            level *= jump
-            kv_k *= jump
-        s = np.tanh(v / 1e-3)
-        F = kv_k * v + s * (level + E)
-        if effect == "motor_position_ripple":
-            F += 0.4 * kc * np.sin(83.0 * q + ph[2])
-        if effect == "energy_dependent_friction":
-            E += dt * (k_e * abs(F * v) - E) / tau_e
-        err = vref - v
-        integ += err * dt
-        u = J * 0.0 + 40.0 * J * err + 400.0 * J * integ
-        if k % every == 0:
-            T.append(tk)
-            Qs.append(q)
-            Us.append(u)
-        a = (u - F) / J
-        v += a * dt
-        q += v * dt
-    step = 2 * np.pi / (4096 * 83)
-    Qm = np.round(np.array(Qs) / step) * step
-    tau = np.array(Us) + noise_std * rng.standard_normal(len(Us))
-    truth = {"effects": [] if effect == "none" else [effect], "joints": [1], "noise_std": noise_std,
-             "J": J, "kc": kc, "kv": kv}
-    return Log(t=np.array(T), q=Qm, tau=tau, joints=[1]), truth
+# the first round's closed-loop axis generator lives in the library now (one copy)
+from drake_est.diagnose.testbench_loop import axis_log  # noqa: E402
 
 
 def other_generator(seeds: int = 2, verbose=True):

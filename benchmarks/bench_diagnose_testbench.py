@@ -1,8 +1,15 @@
-"""Confusion matrix of the diagnosis on logs from the independent generator
-:mod:`drake_est.diagnose.testbench` (not synth): every effect alone, pairs, one-third size, Stribeck with
-several vs, time-periodic disturbances at several frequencies, null logs with Gaussian,
-Student-t and quantized noise, 10-1000 Hz, and the out-of-vocabulary effects (backlash, delay) that must
-end as "unexplained".  (One-speed logs, where ripple and time-periodic are ambiguous, are in
+"""Confusion matrices of the diagnosis on logs from three generators (``--family``, default all three):
+
+* ``testbench``: :mod:`drake_est.diagnose.testbench` (open-loop square-wave speed levels, torque = model +
+  noise): every effect alone, pairs, one-third size, Stribeck with several vs, time-periodic disturbances at
+  several frequencies, null logs with Gaussian, Student-t and quantized noise, 10-1000 Hz, and the
+  out-of-vocabulary effects (backlash, delay) that must end as "unexplained";
+* ``loop``: :mod:`drake_est.diagnose.testbench_loop` (a simulated axis under a PID position loop, point-to-point
+  and multisine references, the logged torque is the controller's command; its own shapes of every effect and
+  its own out-of-vocabulary effects: backlash, compliance, sensor_delay).  An effect that the generator finds
+  not visible in the log (its visibility rule) is optional: not required, and not wrong when named;
+* ``synth``: :func:`drake_est.synth.synthesize` (Drake IRB 140), single-joint effects of synth's vocabulary on
+  joint 1, each log diagnosed with ``robot="generic"`` and with ``robot="irb140"``.  (One-speed logs, where ripple and time-periodic are ambiguous, are in
 tests/test_diagnose_multilog.py, not here.)  The ``got`` label of a finding reported "ambiguous between A and
 B" is ``ambiguous(A|B)``.
 
@@ -10,8 +17,9 @@ A log counts as: ``correct`` (every planted vocabulary effect named or part of a
 pair, no other name; out-of-vocabulary: no name and a non-empty ``unexplained``), ``wrong`` (a name not
 planted), ``missed`` (a planted effect not named).
 
-Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_diagnose_testbench.py [--n 150] [--json out.json]
-       python benchmarks/bench_diagnose_testbench.py --from-json out.json   (counts and matrix again)
+Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_diagnose_testbench.py [--family testbench,loop,synth]
+           [--n 150] [--n-loop 100] [--n-synth 8] [--json out.json]
+       python benchmarks/bench_diagnose_testbench.py --from-json out.json   (counts, matrices, README table again)
 """
 from __future__ import annotations
 
@@ -30,6 +38,14 @@ SINGLE = ["stribeck", "time_periodic_disturbance", "motor_position_ripple", "pos
 PAIRS = [("stribeck", "motor_position_ripple"), ("time_periodic_disturbance", "asymmetric_coulomb"),
          ("position_dependent_friction", "abrupt_change"), ("stribeck", "time_periodic_disturbance")]
 OOV = ["backlash", "delay"]
+#: the closed-loop generator's own pairs and out-of-vocabulary effects
+LOOP_PAIRS = [("stribeck", "position_dependent_load"), ("time_periodic_disturbance", "position_dependent_friction"),
+              ("motor_position_ripple", "abrupt_change"), ("asymmetric_coulomb", "stribeck")]
+LOOP_OOV = ["backlash", "compliance", "sensor_delay"]
+#: synth's single-joint vocabulary (joint 1)
+SYNTH = ["none", "position_dependent_friction", "motor_position_ripple", "asymmetric_coulomb", "abrupt_change",
+         "energy_dependent_friction", "none", "motor_position_ripple"]
+FAMILY_ORDER = ["testbench", "loop", "synth"]
 
 
 def cases(n: int):
@@ -59,80 +75,234 @@ def cases(n: int):
     return out
 
 
-def judge(spec, d):
+def loop_cases(n: int):
+    """n randomized specs for the closed-loop generator (seeded; its own pairs and third-size effects)."""
+    fam = ([("single", (e,)) for e in SINGLE] + [("pair", p) for p in LOOP_PAIRS]
+           + [("third", (e,)) for e in SINGLE[4:]] + [("null", ())] * 3 + [("oov", (e,)) for e in LOOP_OOV])
+    out = []
+    for k in range(n):
+        kind, effs = fam[k % len(fam)]
+        rng = np.random.default_rng(7000 + k)
+        size = 1.0 / 3.0 if kind == "third" else 1.0
+        spec = {"effects": {e: size for e in effs}, "seed": 3000 + k,
+                "sample_rate": float(rng.choice([10.0, 50.0, 100.0, 250.0, 1000.0])),
+                "duration": float(rng.choice([120.0, 120.0, 300.0])),
+                "noise": ["gaussian", "student_t", "quantized"][(k // len(fam) + k) % 3],
+                "noise_std": float(rng.uniform(0.03, 0.15))}
+        if spec["sample_rate"] >= 1000:
+            spec["duration"] = 120.0
+        if "energy_dependent_friction" in effs:
+            spec["duration"] = 600.0
+            spec["sample_rate"] = min(spec["sample_rate"], 50.0)
+        if "time_periodic_disturbance" in effs:
+            spec["effects"]["_f_hz"] = float(min(rng.choice([0.5, 2.0, 6.0, 15.0, 40.0]), 0.3 * spec["sample_rate"]))
+        out.append(spec)
+    return out
+
+
+def synth_cases(n: int):
+    """n specs for :func:`drake_est.synth.synthesize`: synth's single-joint effects on joint 1 (seeded)."""
+    out = []
+    for k in range(n):
+        eff = SYNTH[k % len(SYNTH)]
+        rng = np.random.default_rng(9000 + k)
+        spec = {"effects": {} if eff == "none" else {eff: 1.0}, "seed": 5000 + k,
+                "sample_rate": float(rng.choice([50.0, 100.0, 250.0])), "duration": 121.0,
+                "noise_std": float(rng.uniform(0.1, 0.5))}
+        if eff == "energy_dependent_friction":
+            spec.update(duration=501.0, sample_rate=25.0)
+        out.append(spec)
+    return out
+
+
+def judge(spec, d, optional=()):
+    """Score one diagnosis against the planted effects; ``optional`` effects (planted but not visible in the
+    log, by the generator's visibility rule) are neither required nor wrong when named."""
+    optional = set(optional)
     planted = {e for e in spec["effects"] if not e.startswith("_")}
-    vocab = planted - set(OOV)
+    oov_all = set(OOV) | set(LOOP_OOV)
+    vocab = planted - oov_all - optional
+    allowed = vocab | (optional - oov_all)
     named = set()
     for f in d["findings"]:
         named |= set(f.get("ambiguous_between", [f["effect"]]))
-    wrong = sorted({f["effect"] for f in d["findings"]} - vocab
+    wrong = sorted({f["effect"] for f in d["findings"]} - allowed
                    if not any(f.get("ambiguous_between") for f in d["findings"]) else
-                   {f["effect"] for f in d["findings"] if not (set(f.get("ambiguous_between", [f["effect"]])) & vocab)})
+                   {f["effect"] for f in d["findings"]
+                    if not (set(f.get("ambiguous_between", [f["effect"]])) & allowed)})
     missed = sorted(vocab - named)
-    oov = planted & set(OOV)
+    oov = (planted & oov_all) - optional
     unexpl_ok = (not oov) or bool(d["unexplained"])
     return {"wrong": wrong, "missed": missed, "oov_unexplained": unexpl_ok,
             "correct": not wrong and not missed and unexpl_ok}
 
 
-def summarize(rows) -> dict:
-    """Counts, the confusion (truth -> what the diagnosis said) and a markdown matrix from the per-log rows."""
-    conf = Counter((r["truth"], r["got"]) for r in rows)
-    oov = [r for r in rows if set(r["truth"].split("+")) & set(OOV)]
-    null = [r for r in rows if r["truth"] == "none"]
+def _matrix(conf) -> str:
     truths = sorted({t for t, _ in conf})
     gots = sorted({g for _, g in conf})
     L = ["| planted \\ diagnosed | " + " | ".join(gots) + " |", "|---" * (len(gots) + 1) + "|"]
     for t in truths:
         L.append(f"| {t} | " + " | ".join(str(conf.get((t, g), "")) for g in gots) + " |")
+    return "\n".join(L)
+
+
+def _counts(rows) -> dict:
+    conf = Counter((r["truth"], r["got"]) for r in rows)
+    oov_all = set(OOV) | set(LOOP_OOV)
+    oov = [r for r in rows if set(r["truth"].split("+")) & oov_all]
+    null = [r for r in rows if r["truth"] == "none"]
     return {"logs": len(rows), "correct": sum(r["correct"] for r in rows),
             "wrong_names": sum(bool(r["wrong"]) for r in rows), "missed": sum(bool(r["missed"]) for r in rows),
             "oov_logs": len(oov), "oov_unexplained_right": sum(r["oov_unexplained"] and not r["wrong"] for r in oov),
             "oov_not_unexplained": sum(not r["oov_unexplained"] for r in rows),
             "null_logs": len(null), "null_logs_clean": sum(r["got"] == "none" for r in null),
-            "wrong_name_cases": [{"k": r["k"], "truth": r["truth"], "got": r["got"]} for r in rows if r["wrong"]],
-            "missed_cases": [{"k": r["k"], "truth": r["truth"], "got": r["got"], "missed": r["missed"]}
-                             for r in rows if r["missed"]],
+            "not_visible_effects": sum(len(r.get("not_visible", {})) for r in rows),
+            "wrong_name_cases": [_case(r) for r in rows if r["wrong"]],
+            "missed_cases": [dict(_case(r), missed=r["missed"]) for r in rows if r["missed"]],
+            "oov_not_unexplained_cases": [_case(r) for r in rows if not r["oov_unexplained"]],
             "median_seconds_per_log": float(np.median([r["seconds"] for r in rows])) if rows else None,
             "confusion": {f"{t} -> {g}": c for (t, g), c in sorted(conf.items())},
-            "matrix_markdown": "\n".join(L), "rows": rows}
+            "matrix_markdown": _matrix(conf)}
+
+
+def _case(r) -> dict:
+    keys = ("k", "family", "robot", "truth", "got", "sample_rate", "duration", "noise", "noise_std", "samples")
+    return {k: r[k] for k in keys if k in r}
+
+
+def family_of(r) -> str:
+    """The family key of a row: testbench, loop, synth/generic, synth/irb140 (rows of older JSON files have no
+    family: testbench)."""
+    fam = r.get("family", "testbench")
+    return f"{fam}/{r.get('robot', 'generic')}" if fam == "synth" else fam
+
+
+def summarize(rows) -> dict:
+    """Counts, the confusion (truth -> what the diagnosis said) and markdown matrices from the per-log rows:
+    overall and per family (``per_family``)."""
+    out = _counts(rows)
+    fams = sorted({family_of(r) for r in rows}, key=lambda f: (FAMILY_ORDER.index(f.split("/")[0]), f))
+    out["per_family"] = {f: _counts([r for r in rows if family_of(r) == f]) for f in fams}
+    out["rows"] = rows
+    return out
+
+
+def readme_table(summary, source="diagnose_testbench.json") -> list:
+    """The README table rows (per family, then all) for a summary: tests/test_diagnose_testbench.py checks that
+    docs/readme/diagnose_testbench.md holds exactly these lines for the kept JSON."""
+    L = [f"| family (`{source}`) | logs | correct | wrong name | missed | out-of-vocabulary -> unexplained | "
+         "null logs clean |", "|---|---|---|---|---|---|---|"]
+    items = list(summary["per_family"].items()) + [("all", summary)]
+    for name, s in items:
+        L.append(f"| {name} | {s['logs']} | {s['correct']} | {s['wrong_names']} | {s['missed']} | "
+                 f"{s['oov_unexplained_right']} / {s['oov_logs']} | {s['null_logs_clean']} / {s['null_logs']} |")
+    return L
+
+
+def _print(summary):
+    skip = ("rows", "matrix_markdown", "per_family")
+    print(json.dumps({k: v for k, v in summary.items() if k not in skip}, indent=1))
+    for fam, s in summary["per_family"].items():
+        print(f"\n### {fam}: {s['correct']}/{s['logs']} correct, {s['wrong_names']} wrong names, {s['missed']} missed, "
+              f"out-of-vocabulary unexplained {s['oov_unexplained_right']}/{s['oov_logs']}, "
+              f"null clean {s['null_logs_clean']}/{s['null_logs']}\n")
+        print(s["matrix_markdown"])
+    print("\n### all\n")
+    print(summary["matrix_markdown"])
+    print()
+    print("\n".join(readme_table(summary)))
+
+
+def _label(effects, not_visible=()):
+    vis = sorted(e for e in effects if not e.startswith("_") and e not in not_visible)
+    lab = "+".join(vis) or "none"
+    if not_visible:
+        lab += " (not visible: " + "+".join(sorted(not_visible)) + ")"
+    return lab
+
+
+def _got(d):
+    got = "+".join(sorted(f["effect"] if not f.get("ambiguous_between") else
+                          "ambiguous(" + "|".join(f["ambiguous_between"]) + ")" for f in d["findings"]))
+    return got or ("unexplained" if d["unexplained"] else "none")
+
+
+def _row(k, family, robot, spec, log, d, dt, not_visible=None):
+    nv = dict(not_visible or {})
+    j = judge(spec, d, optional=nv)
+    truth_name = _label(spec["effects"], nv)
+    r = {"k": k, "family": family, "robot": robot, "truth": truth_name, "got": _got(d), "seconds": dt,
+         "samples": int(log.n_samples), "sample_rate": spec.get("sample_rate"), "duration": spec.get("duration"),
+         "noise": spec.get("noise", "gaussian"), "noise_std": spec.get("noise_std"),
+         "unexplained": [u.get("variable") for u in d["unexplained"]], **j}
+    if nv:
+        r["not_visible"] = nv
+    return r
+
+
+def _run_family(family, specs, rows):
+    from drake_est.diagnose import diagnose
+    from drake_est.progress import progress
+    for k, spec in enumerate(progress(specs, desc=family)):
+        nv = None
+        if family == "testbench":
+            from drake_est.diagnose.testbench import generate
+            log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
+                                  sample_rate=spec["sample_rate"], speeds=spec["speeds"], noise=spec["noise"],
+                                  noise_std=spec["noise_std"])
+            robots = ["generic"]
+        elif family == "loop":
+            from drake_est.diagnose.testbench_loop import generate
+            log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
+                                  sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
+            nv = truth["not_visible"]
+            robots = ["generic"]
+        else:
+            from drake_est.synth import synthesize
+            effs = [e for e in spec["effects"]] or "none"
+            log, truth = synthesize(effs, seed=spec["seed"], joints=[1], duration=spec["duration"],
+                                    sample_rate=spec["sample_rate"], noise_std=spec["noise_std"])
+            robots = ["generic", "irb140"]
+        for robot in robots:
+            t0 = time.perf_counter()
+            d = diagnose(log, robot=robot, seed=0, simulate=False).to_dict()
+            dt = time.perf_counter() - t0
+            r = _row(k, family, robot, spec, log, d, dt, nv)
+            rows.append(r)
+            print(f"{family:9s} {robot:7s} {k:3d} {r['truth']:50s} -> {r['got']:50s} "
+                  f"{'ok' if r['correct'] else 'FAIL'} {spec['sample_rate']:6.0f} Hz {spec['duration']:4.0f} s "
+                  f"{spec.get('noise', 'gaussian'):9s} {dt:5.1f}s", flush=True)
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser()
-    ap.add_argument("--n", type=int, default=150)
+    ap.add_argument("--family", default="testbench,loop,synth", help="comma-separated: testbench, loop, synth")
+    ap.add_argument("--n", type=int, default=150, help="logs from the open-loop testbench generator")
+    ap.add_argument("--n-loop", type=int, default=100, help="logs from the closed-loop generator")
+    ap.add_argument("--n-synth", type=int, default=8, help="synth logs (each diagnosed with generic and irb140)")
     ap.add_argument("--json", default=None)
     ap.add_argument("--from-json", default=None, help="re-summarize the rows of an earlier --json output")
     a = ap.parse_args(argv)
     if a.from_json:
         summary = summarize(json.load(open(a.from_json))["rows"])
-        print(json.dumps({k: v for k, v in summary.items() if k not in ("rows", "matrix_markdown")}, indent=1))
-        print(summary["matrix_markdown"])
+        _print(summary)
         if a.json:
             from drake_est.jsonutil import dump_json
             dump_json(summary, a.json)
         return summary
-    from drake_est.diagnose import diagnose
-    from drake_est.diagnose.testbench import generate
-    rows, conf = [], Counter()
-    for k, spec in enumerate(cases(a.n)):
-        log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
-                              sample_rate=spec["sample_rate"], speeds=spec["speeds"], noise=spec["noise"],
-                              noise_std=spec["noise_std"])
-        t0 = time.perf_counter()
-        d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
-        dt = time.perf_counter() - t0
-        j = judge(spec, d)
-        truth_name = "+".join(sorted(e for e in spec["effects"] if not e.startswith("_"))) or "none"
-        got = "+".join(sorted(f["effect"] if not f.get("ambiguous_between") else
-                              "ambiguous(" + "|".join(f["ambiguous_between"]) + ")" for f in d["findings"]))
-        got = got or ("unexplained" if d["unexplained"] else "none")
-        conf[(truth_name, got)] += 1
-        rows.append({"k": k, "truth": truth_name, "got": got, "seconds": dt, "samples": int(log.n_samples), **j})
-        print(f"{k:3d} {truth_name:50s} -> {got:50s} {'ok' if j['correct'] else 'FAIL'} {dt:5.1f}s", flush=True)
+    fams = [f.strip() for f in a.family.split(",") if f.strip()]
+    for f in fams:
+        if f not in FAMILY_ORDER:
+            raise SystemExit(f"--family: unknown family '{f}' (choose from {', '.join(FAMILY_ORDER)})")
+    rows = []
+    if "testbench" in fams:
+        _run_family("testbench", cases(a.n), rows)
+    if "loop" in fams:
+        _run_family("loop", loop_cases(a.n_loop), rows)
+    if "synth" in fams:
+        _run_family("synth", synth_cases(a.n_synth), rows)
     summary = summarize(rows)
-    print(json.dumps({k: v for k, v in summary.items() if k not in ("rows", "matrix_markdown")}, indent=1))
-    print(summary["matrix_markdown"])
+    _print(summary)
     if a.json:
         from drake_est.jsonutil import dump_json
         dump_json(summary, a.json)
