@@ -111,7 +111,8 @@ def test_abrupt_change_with_position_friction_still_named():
 
 
 def test_readme_testbench_counts_are_the_measured_ones():
-    """The README's final-code row holds the counts that the benchmark's summarize() gives for the kept JSON."""
+    """The README's per-family table (testbench, loop, synth/generic, synth/irb140, all) holds the counts that
+    the benchmark's summarize() gives for the kept JSON (readme_table renders the lines)."""
     import importlib.util
     import json
     from pathlib import Path
@@ -121,7 +122,40 @@ def test_readme_testbench_counts_are_the_measured_ones():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     s = mod.summarize(json.loads((root / "benchmarks" / "results" / "diagnose_testbench.json").read_text())["rows"])
-    row = (f"| final code, after item 6 (`diagnose_testbench.json`) | **{s['correct']}** | **{s['wrong_names']}** | "
-           f"{s['missed']} | **{s['oov_unexplained_right']} / {s['oov_logs']}** | "
-           f"**{s['null_logs_clean']} / {s['null_logs']}** |")
-    assert row in (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    readme = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    for line in mod.readme_table(s):
+        assert line in readme, line
+    fams = {r.get("family", "testbench") for r in s["rows"]}
+    assert sum(f["logs"] for f in s["per_family"].values()) == s["logs"]
+    if fams == {"testbench"}:
+        # the kept JSON is still the testbench-only run: its row in the history table stays checked too
+        row = (f"| final code, after item 6 (`diagnose_testbench.json`) | **{s['correct']}** | **{s['wrong_names']}** | "
+               f"{s['missed']} | **{s['oov_unexplained_right']} / {s['oov_logs']}** | "
+               f"**{s['null_logs_clean']} / {s['null_logs']}** |")
+        assert row in readme
+
+
+def test_summarize_counts_per_family():
+    """Rows of several families: the per-family counts add up to the overall ones, synth splits by robot, and a
+    not-visible effect is shown in the truth label."""
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    base = {"wrong": [], "missed": [], "oov_unexplained": True, "correct": True, "seconds": 1.0}
+    rows = [dict(base, k=0, truth="none", got="none"),
+            dict(base, k=0, family="loop", truth="stribeck", got="abrupt_change", wrong=["abrupt_change"],
+                 missed=["stribeck"], correct=False),
+            dict(base, k=0, family="synth", robot="generic", truth="none", got="none"),
+            dict(base, k=0, family="synth", robot="irb140", truth="none", got="unexplained")]
+    s = mod.summarize(rows)
+    assert list(s["per_family"]) == ["testbench", "loop", "synth/generic", "synth/irb140"]
+    assert s["correct"] == 3 and s["wrong_names"] == 1 and s["null_logs_clean"] == 2 and s["null_logs"] == 3
+    assert s["per_family"]["loop"]["wrong_name_cases"][0]["truth"] == "stribeck"
+    assert sum(f["correct"] for f in s["per_family"].values()) == s["correct"]
+    assert mod._label({"stribeck": 1, "_vs": 0.1}, {"stribeck": "tiny"}) == "none (not visible: stribeck)"
+    table = mod.readme_table(s)
+    assert table[-1].startswith("| all | 4 | 3 | 1 | 1 |")
