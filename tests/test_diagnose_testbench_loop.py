@@ -186,3 +186,12 @@ def test_diagnosis_spot_checks(k):
     d = diagnose(log, robot="generic", simulate=False).to_dict()
     j = b.judge(spec, d, optional=truth["not_visible"])
     assert j["correct"], (spec, [f["effect"] for f in d["findings"]], d["unexplained"])
+
+
+def test_bad_arguments_are_one_line_data_errors():
+    from drake_est.errors import DataError
+    for kw in ({"effects": {"gearbox": 1.0}}, {"effects": {"stribeck": -1.0}}, {"noise": "pink"},
+               {"duration": 0.0}):
+        with pytest.raises(DataError) as e:
+            generate(**{"effects": {}, **kw}, seed=0, **({} if "duration" in kw else {"duration": 5.0}))
+        assert "\n" not in str(e.value)

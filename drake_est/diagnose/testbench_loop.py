@@ -379,7 +379,7 @@ def _plant(p, info, name, size, u, effects, duration, sample_rate):
         d = size * (0.01 + 0.03 * u[0])
         p[P_NDELAY] = max(1, int(round(d / p[P_DT])))
         return {"seconds": float(p[P_NDELAY] * p[P_DT])}
-    raise ValueError(f"testbench_loop: unknown effect {name}")
+    raise ValueError(f"testbench_loop: unknown effect {name}")  # unreachable: generate() checks the names
 
 
 def _run(p, ref, n_log):
@@ -407,23 +407,29 @@ def _nominal_residual(t, y, u):
 
 def generate(effects=None, seed: int = 0, duration: float = 120.0, sample_rate: float = 100.0,
              noise: str = "gaussian", noise_std: float = 0.1, prismatic: bool = False, check_visible: bool = True,
-             **_ignored):
+             speeds=None):
     """A closed-loop axis log with planted ``effects`` ({name: relative size}, 1 = typical, 1/3 = small;
     optional keys ``_vs`` [rad/s], ``_f_hz`` [Hz], ``_f_per_rad`` [cycles/rad]); returns ``(Log, truth)``.
 
     ``truth["effects"]``: the planted effects that are visible (module docstring); ``truth["not_visible"]``:
     {name: reason} for those that are not; ``truth["signals"]``: noise-free arrays (true position, velocity,
-    thermal state, torque command before the torque noise) at the logged samples.  ``speeds`` and other
-    keyword arguments of :func:`drake_est.diagnose.testbench.generate` are accepted and ignored."""
+    thermal state, torque command before the torque noise) at the logged samples.  ``speeds`` (of
+    :func:`drake_est.diagnose.testbench.generate`) is accepted for the same call and has no meaning here: the
+    speeds come from the reference family.  Unknown effects, noise kinds or sizes raise a one-line DataError."""
     from drake_est.data import from_arrays
+    from drake_est.errors import DataError
 
     effects = dict(effects or {})
     planted = {k: float(v) for k, v in effects.items() if not k.startswith("_")}
-    for k in planted:
+    for k, size in planted.items():
         if k not in VOCABULARY_EFFECTS + OUT_OF_VOCABULARY:
-            raise ValueError(f"testbench_loop: unknown effect {k}")
+            raise DataError(f"effects: unknown effect '{k}' (choose from {', '.join(VOCABULARY_EFFECTS + OUT_OF_VOCABULARY)})")
+        if not (np.isfinite(size) and size > 0):
+            raise DataError(f"effects: the size of '{k}' must be a finite number > 0, got {size}")
     if noise not in ("gaussian", "student_t", "quantized"):
-        raise ValueError(f"testbench_loop: unknown noise {noise}")
+        raise DataError(f"noise: unknown kind '{noise}' (choose from gaussian, student_t, quantized)")
+    if not (np.isfinite(duration) and duration > 0 and np.isfinite(sample_rate) and sample_rate > 0):
+        raise DataError(f"duration and sample_rate must be finite and > 0, got {duration}, {sample_rate}")
     rng = np.random.default_rng(seed)
     p0, info, (traj, lo, hi, vmax), draws = _draw(rng, effects, duration, sample_rate)
     n_log = int(round(duration * sample_rate))
