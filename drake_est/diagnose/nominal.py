@@ -124,11 +124,22 @@ def coupled_joints(j, moving, meta=None) -> list:
     return _coupled_joints(None if meta is None else meta.motor_from_arm, j, list(moving))
 
 
+#: (9.9) lower speed bound of the selected samples, as a fraction of the 95th percentile of |v|
+V_MIN_FRACTION = 0.05
+
+
 def select_rows(v, a, t):
     """Data selection (9.9): |v| clearly above zero and |a| small. Returns (mask, counts, thresholds)."""
     av = np.abs(v)
     vref = float(np.quantile(av, 0.95))
-    v_min = 0.05 * vref
+    # |v| must be clearly above zero, where sign(v) is certain and the friction is in its sliding regime: above
+    # 5 % of the top speed and above ten times the velocity noise (robust: the sample-to-sample jitter of v,
+    # which a smooth trajectory does not have).  2 % was tried: it lets a Stribeck hump at vs = 5 % of the top
+    # speed be seen, but also the first seconds after each reversal at the slowest speeds, where a backlash or
+    # presliding transient was then named as a Stribeck law, a load and a disturbance periodic in time.
+    dv = np.diff(v)
+    v_noise = 1.4826 * float(np.median(np.abs(dv - np.median(dv)))) / np.sqrt(2.0) if dv.size else 0.0
+    v_min = max(V_MIN_FRACTION * vref, 10.0 * v_noise)
     moving = av > v_min
     aa = np.abs(a)
     a_ref = float(np.median(aa[moving])) if moving.any() else 0.0
