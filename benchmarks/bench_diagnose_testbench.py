@@ -9,7 +9,9 @@
   its own out-of-vocabulary effects: backlash, compliance, sensor_delay).  An effect that the generator finds
   not visible in the log (its visibility rule) is optional: not required, and not wrong when named;
 * ``synth``: :func:`drake_est.synth.synthesize` (Drake IRB 140), single-joint effects of synth's vocabulary on
-  joint 1, each log diagnosed with ``robot="generic"`` and with ``robot="irb140"``.  (One-speed logs, where ripple and time-periodic are ambiguous, are in
+  joint 1, each log diagnosed with ``robot="generic"`` and with ``robot="irb140"``.
+
+(One-speed logs, where ripple and time-periodic are ambiguous, are in
 tests/test_diagnose_multilog.py, not here.)  The ``got`` label of a finding reported "ambiguous between A and
 B" is ``ambiguous(A|B)``.
 

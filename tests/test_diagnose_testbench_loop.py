@@ -195,3 +195,13 @@ def test_bad_arguments_are_one_line_data_errors():
         with pytest.raises(DataError) as e:
             generate(**{"effects": {}, **kw}, seed=0, **({} if "duration" in kw else {"duration": 5.0}))
         assert "\n" not in str(e.value)
+
+
+def test_no_numba_environment_variable_selects_the_python_kernel(monkeypatch):
+    from drake_est.diagnose import testbench_loop as tl
+    monkeypatch.setenv("DRAKE_EST_NO_NUMBA", "1")
+    assert not tl._use_numba()
+    a, _ = generate({"stribeck": 1.0}, seed=1, duration=3, sample_rate=50, check_visible=False)
+    monkeypatch.delenv("DRAKE_EST_NO_NUMBA")
+    b, _ = generate({"stribeck": 1.0}, seed=1, duration=3, sample_rate=50, check_visible=False)
+    assert np.max(np.abs(a.tau - b.tau)) <= 1e-10 * np.max(np.abs(b.tau))

@@ -389,10 +389,10 @@ def _run(p, ref, n_log):
 
 
 def _nominal_residual(t, y, u):
-    """Residual of the torque ``u`` after a least-squares fit of the nominal axis [qdd, qd, sign(qd)] (9.2) on the samples that the
-    data selection (9.9) keeps (|qd| > 2 % of its 95 % quantile, |qdd| <= 3 x its median over the moving
-    samples), derivatives of the logged positions ``y`` over 0.1 s; returns (residual at every sample, qd, the
-    selection mask, the moving mask).
+    """Residual of the torque ``u`` after a least-squares fit of the nominal axis [qdd, qd, sign(qd)] (9.2) on
+    the samples that the data selection (9.9) keeps (|qd| > 2 % of its 95 % quantile, |qdd| <= 3 x its median
+    over the moving samples), derivatives of the logged positions ``y`` over 0.1 s; returns (residual at every
+    sample, qd, the selection mask, the moving mask).
     """
     from drake_est.data import smooth_derivatives
     dq, ddq, _ = smooth_derivatives(t, y[:, None], window_s=0.1)
@@ -423,7 +423,8 @@ def generate(effects=None, seed: int = 0, duration: float = 120.0, sample_rate: 
     planted = {k: float(v) for k, v in effects.items() if not k.startswith("_")}
     for k, size in planted.items():
         if k not in VOCABULARY_EFFECTS + OUT_OF_VOCABULARY:
-            raise DataError(f"effects: unknown effect '{k}' (choose from {', '.join(VOCABULARY_EFFECTS + OUT_OF_VOCABULARY)})")
+            known = ", ".join(VOCABULARY_EFFECTS + OUT_OF_VOCABULARY)
+            raise DataError(f"effects: unknown effect '{k}' (choose from {known})")
         if not (np.isfinite(size) and size > 0):
             raise DataError(f"effects: the size of '{k}' must be a finite number > 0, got {size}")
     if noise not in ("gaussian", "student_t", "quantized"):
