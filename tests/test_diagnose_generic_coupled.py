@@ -143,7 +143,7 @@ def test_single_joint_prepare_is_unchanged():
 
 def test_two_link_log_with_generic_robot_names_only_the_loads():
     """The two-link arm as a log (derivatives from positions, like any log): nothing but the gravity loads."""
-    t, q, v, a, tau, meas = arm_data(seed=4, duration=150.0)
+    t, q, v, a, tau, meas = arm_data(seed=4, duration=100.0)
     log = Log(t=t, q=np.column_stack([q[2], q[3]]), tau=np.column_stack([meas[2], meas[3]]), joints=[2, 3])
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     names = {f["effect"] for f in d["findings"]}
@@ -197,3 +197,14 @@ def test_irb140_wrist_gear_coupling_is_named_alone():
     f, _ = _findings(log)
     assert ("gear_coupling", 5) in f and ("gear_coupling", 6) in f, f
     assert {e for e, _ in f} == {"gear_coupling"}, f
+
+
+@pytest.mark.slow
+def test_irb140_joints_2_3_abrupt_change_is_named_and_fitted():
+    """Friction that jumps mid-log must not be absorbed by the coupled columns (time-segment nuisance)."""
+    log, truth = _synth("abrupt_change", (2, 3), 16, duration=120.0)
+    f, d = _findings(log)
+    assert ("abrupt_change", 2) in f and ("abrupt_change", 3) in f, f
+    assert {e for e, _ in f} <= {"abrupt_change", "position_dependent_load"}, f
+    for j in ("2", "3"):
+        assert d["final"]["per_joint"][j]["rmse"] < 1.25 * truth["noise_std"]

@@ -8,7 +8,10 @@ The nominal model of every excited joint ``j`` is
 i.e. the rigid-body model plus the symmetric Coulomb + viscous friction law (9.2), fitted by
 least squares.  For a generic axis J_j is identified with a constant and sin q, cos q as nuisance columns
 (a gravity/spring load would otherwise bias it); the load itself is left to the held-out test
-(``position_dependent_load``, whose candidate carries sin q, cos q exactly: issue 16 item 6).  :func:`prepare` computes derivatives, the rigid-body torque, the data selection of
+(``position_dependent_load``, whose candidate carries sin q, cos q exactly: issue 16 item 6).  When several
+logged joints move, the rigid-body torque of a generic joint also holds the coupled terms of a serial arm that
+the data identify (gravity of the links beyond, coupling inertia, centripetal and Coriolis torques:
+:func:`select_coupled_rigid_body`).  :func:`prepare` computes derivatives, the rigid-body torque, the data selection of
 (9.9) (velocity away from zero, small acceleration), the alternating-block train/validation split
 and a robust outlier screen, and records how many samples each step excluded.
 """
@@ -191,6 +194,8 @@ COUPLING_MAX_COND = 1e6
 #: degree <= 2 in each angle), so only the smooth part of a joint's own position dependence can be confused
 #: with them; the finer kernel expansions of the candidates (up to 64) would only cost the test its power
 OWN_KERNELS = (4, 8, 16)
+#: numbers of equal time segments of the time-varying friction nuisance of that selection (none is also tried)
+FRICTION_SEGMENTS = (4, 8, 16)
 #: the constant part of the coupled terms enters the model only when its standard error is below this fraction of
 #: the noise level: a constant error e raises the RMSE by a factor sqrt(1 + (e / sigma)^2), by less than the
 #: diagnosis' minimum gain of 2 % (core.MIN_GAIN) for e < 0.2 sigma
@@ -285,6 +290,28 @@ def _own_kernels(qj, vj, idx, t, y, Xb):
     for K in OWN_KERNELS:
         G = gaussian_features(qj, np.linspace(lo, hi, K), span / (K - 1))
         C = np.hstack([G, s * G])
+        if Xb.shape[1] + C.shape[1] >= 0.5 * min(f[0].sum() for f in folds):
+            break
+        err = _inner_rss(np.hstack([Xb, C]), y, folds)[0]
+        if err < best[0]:
+            best = (err, C)
+    return best[1]
+
+
+def _friction_segments(vj, idx, t, y, Xb):
+    """[qd_j, sign(qd_j)] times the indicators of equal time segments of the log (all but the first), as a
+    nuisance at the rows ``idx``: friction that changes over the log (an abrupt change, an energy drift: the
+    time-varying candidates of the diagnosis) would otherwise be absorbed by slow coupled columns.  The number of
+    segments (none or one of :data:`FRICTION_SEGMENTS`) is chosen like the kernels' (:func:`_own_kernels`)."""
+    folds = _inner_folds(t, idx)
+    tt = t[idx]
+    t0, t1 = float(t[0]), float(t[-1])
+    best = (_inner_rss(Xb, y, folds)[0], np.zeros((idx.size, 0)))
+    for S in FRICTION_SEGMENTS:
+        seg = np.minimum(((tt - t0) / max(t1 - t0, 1e-12) * S).astype(int), S - 1)
+        H = (seg[:, None] == np.arange(1, S)[None, :]).astype(float)
+        C = np.hstack([H * vj[:, None], H * np.sign(vj)[:, None]])
+        C = C[:, np.linalg.norm(C, axis=0) > 0]
         if Xb.shape[1] + C.shape[1] >= 0.5 * min(f[0].sum() for f in folds):
             break
         err = _inner_rss(np.hstack([Xb, C]), y, folds)[0]
@@ -432,6 +459,7 @@ def select_coupled_rigid_body(j, q, v, a, tau, idx_moving, idx_steady, t, others
     ortho_rb = _orthogonal_to(rest, L, L[idx], idx, subtract=[False, True, True])   # differs by a constant
     X_all = np.hstack([Xn] + [U[idx] for _, U in ortho.values()])
     X0 = np.hstack([Xn, _own_kernels(q[j][idx], v[j][idx], idx, t, y, X_all)])
+    X0 = np.hstack([X0, _friction_segments(v[j][idx], idx, t, y, np.hstack([X0, X_all[:, Xn.shape[1]:]]))])
     chosen2, X = _forward_select(X0, y, ortho, idx, t, alpha)
     if chosen2:
         U = np.hstack([ortho[g][1] for g in chosen2])
