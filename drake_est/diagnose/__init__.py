@@ -68,18 +68,13 @@ def concatenate_logs(logs, gap_s: float = 1.0):
     and a channel ``log_index`` (0, 1, ...).  :func:`diagnose` on it fits one model across the logs and holds
     out whole logs (odd-numbered logs validate)."""
     from drake_est.data import Log
+    from drake_est.diagnose.multilog import check_logs
     from drake_est.diagnose.nominal import DERIV_WINDOW_S
-    from drake_est.errors import DataError
-    if len(logs) < 2:
-        raise DataError("concatenate_logs needs at least two logs")
+    check_logs(logs)      # same joints, not empty, torque logged, no recording twice (one line naming the file)
     joints = list(logs[0].joints)
     parts = []
     t_end = None
     for k, lg in enumerate(logs):
-        if list(lg.joints) != joints:
-            raise DataError(f"log {k + 1} has joints {list(lg.joints)}, the first log {joints}")
-        if lg.tau is None:
-            raise DataError(f"log {k + 1} has no torque columns")
         if lg.dq is None or lg.ddq is None or "derivatives" in lg.meta:
             lg = Log(t=lg.t, q=lg.q, tau=lg.tau, joints=joints,
                      meta={"file": lg.meta.get("file", f"log{k + 1}")}).with_derivatives(window_s=DERIV_WINDOW_S)

@@ -23,7 +23,7 @@ import scipy.stats
 import drake_est.diagnose.competition as comp
 import drake_est.diagnose.detectors as det
 from drake_est.diagnose.quantization import torque_step  # noqa: F401  (re-exported)
-from drake_est.diagnose.multilog import log_ids, per_log_offsets
+from drake_est.diagnose.multilog import energy_fn, log_ids, per_log_offsets
 from drake_est.diagnose.nominal import OUTLIER_MAD, block_index, nominal_columns, nominal_names, prepare
 from drake_est.metrics import metrics_table
 from drake_est.regression import ridge_solve
@@ -213,7 +213,7 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             names = nominal_names(prep.robot_kind)
             kv, kc = cj[names.index("kv")], cj[names.index("kc")]
             F_full = kv * jd.v + kc * np.sign(jd.v)
-            out.append(det.energy(jd, r, F_full, fit_train))
+            out.append(det.energy(jd, r, F_full, fit_train, energy_fn=energy_fn(prep)))
         if not have("abrupt_change"):
             out.append(det.change_point(jd, r, smooth_alternative=have("energy_dependent_friction")))
         if not have("stribeck"):

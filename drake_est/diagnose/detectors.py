@@ -264,9 +264,12 @@ class _Sub:
         return self.pc.regressors(q, v, which=self.which)
 
 
-def energy(jd, r, friction_full, fit_train, n_iter=2):
+def energy(jd, r, friction_full, fit_train, n_iter=2, energy_fn=None):
     """Algorithm 6 with a variable-projection search over tau_e: E = H(s) W with W = |F qd| from
-    the current friction estimate, the gain k_e linear; tau_e by training error on a log grid."""
+    the current friction estimate, the gain k_e linear; tau_e by training error on a log grid.
+    ``energy_fn(t, W, tau_e)``: E of (9.23) when it is not the plain one (several logs: E restarts at 0 at each
+    log's first sample, :func:`~drake_est.diagnose.multilog.energy_fn`)."""
+    energy_fn = energy_fn or unit_energy
     t = jd.t
     T = float(t[-1] - t[0])
     h = float(np.median(np.diff(t)))
@@ -278,7 +281,7 @@ def energy(jd, r, friction_full, fit_train, n_iter=2):
         W = np.abs(F * v)
         best = None
         for tau in taus:
-            E = unit_energy(t, W, tau)
+            E = energy_fn(t, W, tau)
             # LPV form (9.29): k_c(E) and k_v(E), both linear in E (the Coulomb-only form (9.22) leaves the
             # viscous drift of a warming joint to be mistaken for another effect, e.g. an abrupt change)
             C = np.column_stack([_sgn(v) * E, v * E])[jd.rows]

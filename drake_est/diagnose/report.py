@@ -366,11 +366,17 @@ def markdown(d: dict) -> str:
           f"Effects: {', '.join(d['final']['effects']) or 'none (nominal)'}; held-out RMSE **{fv['rmse']:.4g} {u}** "
           f"(nominal {_num(nv['rmse'], '.4g')}), gain x{d['final']['gain']['rmse_ratio']:.3g}."]
     if d.get("logs"):
-        L += ["", "## Logs", "", "| log | file | role | joint | samples | nominal RMSE | final RMSE | reduction |",
-              "|---|---|---|---|---|---|---|---|"]
+        held = [str(lg["log"]) for lg in d["logs"] if lg["role"] == "validate"]
+        L += ["", "## Logs", "", f"Held out (not used for fitting): log {', '.join(dict.fromkeys(held))}; their RMSE is "
+              "held-out RMSE. Offsets: each log's own viscous/Coulomb offsets [dkv, dkc] on top of the common friction.",
+              "", "| log | file | role | joint | samples | nominal RMSE | final RMSE | reduction | offsets [dkv, dkc] |",
+              "|---|---|---|---|---|---|---|---|---|"]
         for lg in d["logs"]:
+            o = lg.get("offsets_dkv_dkc")
+            off = "-" if not o else f"[{_num(o[0], '.3g')}, {_num(o[1], '.3g')}]"
             L.append(f"| {lg['log']} | {lg['file']} | {lg['role']} | {lg['joint']} | {lg['samples']} | "
-                     f"{lg['nominal_rmse']:.4g} | {lg['final_rmse']:.4g} | {100 * lg['rmse_reduction']:.1f} % |")
+                     f"{_num(lg['nominal_rmse'], '.4g')} | {_num(lg['final_rmse'], '.4g')} | "
+                     f"{_num(100 * lg['rmse_reduction'] if lg['rmse_reduction'] is not None else None, '.1f')} % | {off} |")
     L += ["", "## Unexplained", ""]
     if not d.get("unexplained"):
         L.append("The final held-out residual shows no remaining structure (dependence on position, velocity, "

@@ -14,16 +14,21 @@ over windows spread evenly over the log.
 The energy state of the energy-dependent friction model is taken from the measured history (it
 is a slow, minutes-long state), i.e. E(t) is an input of the friction system, as is time for the
 abrupt-change model.
+
+Several logs of one machine (:mod:`drake_est.diagnose.multilog`): every window lies inside one log, the
+friction in it carries that log's own Coulomb/viscous offsets [dkv_k, dkc_k] (the same numbers the held-out
+comparison used), and the energy state restarts at each log's first sample.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from drake_est.diagnose.multilog import log_starts, unit_energy_per_log
 from drake_est.diagnose.nominal import nominal_names
 from drake_est.errors import DrakeEstError
 from drake_est.systems.friction import DiagnosedFriction  # noqa: F401  (the system lives in systems/)
-from drake_est.identification.friction import (Coulomb, EnergyDynamics, ExtensionTerm, JointFriction, Viscous,
-                                               unit_energy)
+from drake_est.identification.friction import Coulomb, EnergyDynamics, ExtensionTerm, JointFriction, Viscous
+from drake_est.identification.friction.terms import _sign
 
 
 SIM_STEP_S = 0.002
@@ -73,7 +78,9 @@ class FrictionLaw:
     (:func:`diagnosed_friction_models`); the energy of an energy-dependent effect is taken from the
     measured history (the unit-gain state the regression used, Algorithm 6).
     ``friction(t, q, v)`` takes the log-joint vectors (len = number of log joints) and returns the
-    friction torque of every log joint (zero for joints that were not diagnosed)."""
+    friction torque of every log joint (zero for joints that were not diagnosed).  Several logs: the
+    per-log offsets of ``fit`` (``fit.per_log``) of the log that time ``t`` lies in are added,
+    dkv_k qd + dkc_k sign(qd) (:func:`~drake_est.diagnose.multilog.per_log_offsets`)."""
 
     def __init__(self, result, model, fit, sign_eps: float = 0.0):
         prep = result.prep
@@ -93,7 +100,27 @@ class FrictionLaw:
                 else:
                     c = fit.coef[j]
                     F = c[0] * jd.v + c[1] * np.sign(jd.v)
-                    self.parts[j]["E_t"] = (jd.t, unit_energy(jd.t, np.abs(F * jd.v), e.spec["tau_e"]))
+                    self.parts[j]["E_t"] = (jd.t, unit_energy_per_log(jd.t, np.abs(F * jd.v), e.spec["tau_e"],
+                                                                      log_starts(prep)))
+        #: {log joint: {0-based log: [dkv, dkc]}}: per-log offsets (several logs; empty for one log)
+        self.offsets = {j: dict(o) for j, o in (getattr(fit, "per_log", None) or {}).items()}
+        st = log_starts(prep)
+        self._log_start_t = None if st is None else prep.log.t[st]
+        self._log_start_k = None if st is None else np.asarray(prep.log.channels["log_index"]).astype(int)[st]
+
+    def offsets_at(self, t, v) -> np.ndarray:
+        """Per-log offset torques dkv_k qd + dkc_k sign(qd) of every log joint at time ``t`` (0 for one log)."""
+        F = np.zeros(len(self.log_joints))
+        if not self.offsets:
+            return F
+        i = int(np.searchsorted(self._log_start_t, t, side="right")) - 1
+        k = int(self._log_start_k[max(i, 0)])      # the log that time t lies in (multilog.log_at_time)
+        for j, offs in self.offsets.items():
+            if k in offs:
+                c = self.log_joints.index(j)
+                dkv, dkc = offs[k]
+                F[c] = dkv * v[c] + dkc * float(_sign(np.array([v[c]]), self.sign_eps)[0])
+        return F
 
     def energy_at(self, t) -> np.ndarray:
         """The measured-history unit-gain energy of every log joint at time ``t`` (0 where none)."""
@@ -112,16 +139,32 @@ class FrictionLaw:
         for c, m in self.models.items():
             F[c] = float(m.predict(q, v, E[c:c + 1] if m.needs_energy else None, sign_eps=self.sign_eps,
                                    t=np.array([t]))[0])
-        return F
+        return F + self.offsets_at(t, v.ravel())
 
 
-def _windows(result, window_s, n_windows):
-    """Start times of ``n_windows`` windows spread evenly over the log (away from its ends)."""
-    t = result.prep.log.t
+def _windows_in(t, window_s, n_windows):
     T = float(t[-1] - t[0])
     if T < 3 * window_s:
         return [float(t[0])] if T > window_s else []
     return list(t[0] + window_s + (T - 3 * window_s) * (np.arange(n_windows) + 0.5) / n_windows)
+
+
+def _windows(result, window_s, n_windows):
+    """Start times of ``n_windows`` windows spread evenly over the log (away from its ends).  Several logs:
+    at least one window per log (``max(n_windows, number of logs)`` in all, shared out evenly), each inside
+    its log, so that no simulation runs across the boundary between two logs."""
+    prep = result.prep
+    t = prep.log.t
+    starts = log_starts(prep)
+    if starts is None:
+        return _windows_in(t, window_s, n_windows)
+    bounds = list(starts) + [t.size]
+    n_logs = len(starts)
+    per = [max(n_windows, n_logs) // n_logs + (1 if k < max(n_windows, n_logs) % n_logs else 0) for k in range(n_logs)]
+    out = []
+    for k in range(n_logs):
+        out += _windows_in(t[bounds[k]:bounds[k + 1]], window_s, per[k])
+    return out
 
 
 def _simulate_robot(result, law, payload, t0, t1):
