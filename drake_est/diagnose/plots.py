@@ -67,9 +67,15 @@ def write_plots(rep, out) -> list:
         fig, axes = plt.subplots(len(U), 1, figsize=(10, 3.0 * len(U)), squeeze=False)
         for ax, u in zip(axes[:, 0], U):
             jd, rows, r0, r1 = data[u["joint"]]
-            ax.plot(xs[u["variable"]](jd, rows), r1, ".", ms=1.5, alpha=0.4)
-            ax.set_xlabel(u["variable"])
-            ax.set_ylabel("final residual")
+            if "profile_time_s" in u:     # an event-aligned structure (velocity reversals): its mean profile
+                ax.plot(u["profile_time_s"], u["profile_mean_residual"], ".-")
+                ax.axvline(0.0, color="0.5", lw=0.8)
+                ax.set_xlabel("time from the velocity reversal [s]")
+                ax.set_ylabel("mean residual x new direction")
+            else:
+                ax.plot(xs[u["variable"]](jd, rows), r1, ".", ms=1.5, alpha=0.4)
+                ax.set_xlabel(u["variable"])
+                ax.set_ylabel("final residual")
             ax.set_title(f"joint {u['joint']}: unexplained structure in {u['variable']} "
                          f"({100 * u['share_of_residual_variance']:.1f} % of residual variance)")
         fig.tight_layout()

@@ -11,6 +11,10 @@ a fixed family-wise false-alarm rate (Bonferroni over the tests):
 * on the moving but accelerating samples that the selection (9.9) leaves out (generic axes): ANOVA over
   jerk of the residual after an offset, the inertia and the derivative-filter error (snap) are regressed
   out (a delay between torque and position samples, backlash).
+* at velocity reversals (any sample rate, generic axes): the momentum balance over a window around each
+  reversal, the torque impulse minus J dv, the viscous and the Coulomb impulse (its sign switched at the
+  stationary point of the measured position), t-tested across reversals for a mean that inertia,
+  viscous and offset errors do not explain (:func:`reversal_impulse`).
 
 A structure is reported when its p-value is below ``ALPHA_UNEXPLAINED / n_tests`` *and* it holds at least
 ``MIN_SHARE`` of the residual variance (between-bin or predictable share).  No cause is named for it.
@@ -36,6 +40,18 @@ MIN_EXCLUDED_SAMPLES = 200
 #: tenths of a second away, and its error would be taken for structure
 MAX_DERIV_WINDOW_S = 0.2
 N_LAGS = 5
+#: [s] the reversal window reaches this far on each side of a reversal: the largest torque/position shift
+#: the time-shift test considers (0.1 s) and as much again for the torque of the new direction to build up
+#: (the deficit of a delay or of a dead band lies inside it)
+REVERSAL_MARGIN_S = 0.2
+#: fewest reversals for the impulse t-test (4 regression columns: 8 degrees of freedom at least)
+MIN_REVERSALS = 12
+#: the mean impulse is only testable when it is not nearly collinear with the inertia, viscous and offset
+#: columns (all reversals of one size: a constant deficit is an inertia error); variance inflation bound
+MAX_REVERSAL_VIF = 10.0
+#: a sample closer than this fraction of the sample interval to the reversal instant has an undetermined
+#: Coulomb sign (friction is set-valued at zero speed; the instant is known to a few hundredths of a sample)
+REVERSAL_SIGN_TOL = 0.1
 #: a thermal (energy) drift with a time constant of about an hour needs a log this long [s] to be testable
 THERMAL_MIN_DURATION_S = 3600.0
 
@@ -83,11 +99,12 @@ def _whiteness(e, block, n_lags=N_LAGS):
     return p, 1.0 - rss1 / max(rss0, 1e-300), float(c[0])
 
 
-def _friction_at(model, fit, jd, j, idx):
-    """The final model's friction (nominal + own extensions) at samples ``idx`` of joint j (None when an
-    extension cannot be evaluated there)."""
+def _friction_at(model, fit, jd, j, idx, v=None):
+    """The final model's friction (nominal + own extensions) at samples ``idx`` of joint j, at the logged
+    velocities or at ``v`` (None when an extension cannot be evaluated there)."""
     from drake_est.identification.friction.extensions import columns_at
-    q, v, t = jd.q[idx], jd.v[idx], jd.t[idx]
+    q, t = jd.q[idx], jd.t[idx]
+    v = jd.v[idx] if v is None else np.asarray(v, float)
     blocks = [np.column_stack([v, np.sign(v)])]
     for e in model.own(j):
         if e.effect in ("gear_coupling", "payload"):
@@ -189,6 +206,158 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     return {"jerk_excluded_samples": None if r is None else (*r, float(np.var(e)))}
 
 
+def reversal_times(t, q, v, half_s=0.02):
+    """Velocity reversals of one axis: (index of the first sample after each sign change of ``v``, the
+    reversal instant t0 [s]).  t0 is the stationary point of a least-squares cubic fitted to the *measured
+    positions* over at least 5 samples (about +-``half_s`` and at least +-2 samples) centred on the
+    extremum of q: a sample-rate-independent estimate of when the velocity is zero (a smoothed velocity
+    estimate shifts its zero crossing at asymmetric reversals, by more than a sample at 10 Hz).
+    Reversals whose cubic has no stationary point within a sample of the extremum are dropped."""
+    t, q, v = (np.asarray(a, float) for a in (t, q, v))
+    h = float(np.median(np.diff(t)))
+    s = np.sign(v)
+    rev = np.flatnonzero(s[1:] * s[:-1] < 0) + 1
+    n_p = max(1, int(round(half_s / h)))
+    first, t0 = [], []
+    for r in rev:
+        lo, hi = max(r - 1 - 3 * n_p, 0), min(r + 3 * n_p, t.size)
+        m = lo + int(np.argmax(-s[r] * q[lo:hi]))        # the extremum of q (a maximum before moving negative)
+        a, b = m - n_p - 1, m + n_p + 2
+        if a < 0 or b > t.size:
+            continue
+        tt = (t[a:b] - t[m]) / h
+        c = np.polyfit(tt, q[a:b], 3)
+        roots = np.roots(np.polyder(c))
+        roots = roots[np.isreal(roots)].real
+        roots = roots[np.abs(roots) <= 1.0]
+        if roots.size == 0:
+            continue
+        tr = t[m] + h * float(roots[np.argmin(np.abs(roots))])
+        first.append(int(np.searchsorted(t, tr)))
+        t0.append(tr)
+    return np.asarray(first, int), np.asarray(t0, float)
+
+
+def reversal_impulse(prep, fit, j, margin_s=REVERSAL_MARGIN_S):
+    """Is torque missing (or in excess) at the velocity reversals of generic axis j?
+
+    Momentum balance over a window of n samples before and n after each reversal instant t0
+    (:func:`reversal_times`; n h = ``margin_s``, at least 3 samples), aligned with the new direction s:
+    m_r = s h sum_i (tau_i - J a_i - F_i),  with a_i the central second difference of the *positions* (its
+    sum telescopes to the velocity change) and F_i the final model's friction at the central-difference
+    velocity (its viscous sum telescopes to the position change) with the Coulomb sign switched at t0: no
+    derivative-filter error enters m_r, at any sample rate.  m_r is regressed on [1, s sum a_i h (inertia
+    error), s sum v_i h (viscous error), s (an offset or a load that differs at the two ends of the range)];
+    the intercept c, the mean impulse per reversal that none of these explains, is t-tested across reversals
+    (independent events).  A sample within ``REVERSAL_SIGN_TOL`` samples of t0 has zero speed and a set-valued
+    friction (anything in [-k_c, k_c]): it is left out of every sum, which breaks the telescoping of its
+    J a_cd h by J h^3 a''(t0) / 12; the test allows the intercept that bias, B = sum_r |w_r| |J| h^3 |a''_r| / 12
+    (w: the intercept's least-squares weights, a'' from the fourth difference of q), i.e. it asks whether |c|
+    exceeds B significantly.  Not applied when the intercept is nearly collinear with the other
+    columns (``MAX_REVERSAL_VIF``: e.g. all reversals of one size, a deficit is then an inertia error).
+    A delay d between torque and position samples leaves c = -2 k_c d, a dead band the torque missing while
+    it is crossed.  Returns a dict (p, share, impulse, ...) or None (robot models, too few reversals)."""
+    jd = prep.joints[j]
+    if prep.robot is not None:
+        return None       # the rigid-body torque is only computed at the selected rows
+    model = getattr(fit, "_model", None)
+    if model is None or model.shared_exts():
+        return None
+    N = jd.t.size
+    h = float(np.median(np.diff(jd.t)))
+    n_w = max(3, int(np.ceil(margin_s / h)))
+    fa, t0 = reversal_times(jd.t, jd.q, jd.v)
+    ok = (fa - n_w >= 1) & (fa + n_w <= N - 1)
+    gaps = np.diff(np.concatenate([[-10 ** 9], fa, [10 ** 9]]))
+    ok &= (gaps[:-1] > 2 * n_w) & (gaps[1:] > 2 * n_w)        # one reversal per window
+    fa, t0 = fa[ok], t0[ok]
+    if fa.size:
+        idx = fa[:, None] + np.arange(-n_w - 1, n_w + 1)[None, :]
+        dt = np.diff(jd.t[idx], axis=1)
+        v_min = jd.counts["thresholds"]["v_min"]
+        keep = ((dt.max(1) < 1.5 * h) & (dt.min(1) > 0.5 * h)          # uniformly sampled (no gap between logs)
+                & (np.abs(jd.v[idx[:, :n_w + 1]]).max(1) > v_min)       # really moving before and after
+                & (np.abs(jd.v[idx[:, n_w + 1:]]).max(1) > v_min))
+        fa, t0 = fa[keep], t0[keep]
+    if fa.size < MIN_REVERSALS:
+        return None
+    idx = fa[:, None] + np.arange(-n_w, n_w)[None, :]
+    s_new = np.sign(jd.v[np.minimum(fa + n_w // 2, N - 1)]).astype(float)
+    if np.any(s_new == 0):
+        return None
+    dt0 = jd.t[idx] - t0[:, None]
+    at_t0 = np.abs(dt0) < REVERSAL_SIGN_TOL * h                 # zero speed: set-valued friction
+    sgn = np.where(dt0 > 0, 1.0, -1.0) * s_new[:, None]
+    v_cd = (jd.q[idx + 1] - jd.q[idx - 1]) / (2.0 * h)
+    v_mod = sgn * np.maximum(np.abs(v_cd), 1e-12)
+    F = _friction_at(model, fit, jd, j, idx.ravel(), v=v_mod.ravel())
+    if F is None:
+        return None
+    F = F.reshape(idx.shape)
+    kc = float(fit.coef[j][1])
+    offs = (getattr(fit, "per_log", None) or {}).get(j)
+    if offs and "log_index" in (prep.log.channels or {}):       # several logs: each log's [dkv, dkc] offsets
+        li = np.asarray(prep.log.channels["log_index"]).astype(int)[idx]
+        for k, (dkv, dkc) in offs.items():
+            F = F + (li == int(k)) * (dkv * v_mod + dkc * sgn)
+    a_cd = (jd.q[idx + 1] - 2.0 * jd.q[idx] + jd.q[idx - 1]) / h ** 2
+    J = float(jd.counts.get("inertia", 0.0))
+    # a sample at t0 is left out of every sum (its friction is set-valued); the sums then miss its
+    # J (a(t0) - a_cd) h = -J h^3 a''(t0) / 12 + O(h^5) (a_cd is a triangular average of qdd over +-h), bounded
+    # below through a'' from the fourth difference of the positions
+    w = 1.0 - at_t0
+    e = jd.tau[idx] - J * a_cd - F
+    m = (e * w * s_new[:, None]).sum(1) * h
+    X = np.column_stack([np.ones(fa.size), (a_cd * w * s_new[:, None]).sum(1) * h,
+                         (v_cd * w * s_new[:, None]).sum(1) * h, s_new * w.sum(1) * h])
+    r_at, c_at = np.nonzero(at_t0)
+    i0 = idx[r_at, c_at]
+    a4 = np.zeros(fa.size)
+    a4[r_at] = np.abs(jd.q[i0 - 2] - 4 * jd.q[i0 - 1] + 6 * jd.q[i0] - 4 * jd.q[i0 + 1] + jd.q[i0 + 2]) / h ** 4
+    event_bias = abs(J) * h ** 3 * a4 / 12.0
+    scale = np.linalg.norm(X, axis=0)
+    keep_cols = scale > 0
+    X, scale = X[:, keep_cols], scale[keep_cols]
+    Xs = X / scale
+    if np.linalg.cond(Xs) > 1e8:
+        return None
+    G = np.linalg.solve(Xs.T @ Xs, np.eye(Xs.shape[1]))
+    vif = float(G[0, 0])              # unit-norm columns: the variance inflation of the intercept
+    if vif > MAX_REVERSAL_VIF:
+        return None
+    W = G @ Xs.T                      # least-squares weights: coefficients = W @ m
+    c = W @ m
+    res = m - Xs @ c
+    dof = fa.size - Xs.shape[1]
+    rss1 = float(res @ res)
+    se = float(np.sqrt(rss1 / dof * G[0, 0]))
+    bound = float(np.abs(W[0]) @ event_bias)     # the largest effect of the left-out samples on c
+    excess = max(abs(float(c[0])) - bound, 0.0)
+    p = float(scipy.stats.t.sf(excess / max(se, 1e-300), dof)
+              + scipy.stats.t.sf((abs(float(c[0])) + bound) / max(se, 1e-300), dof))
+    # the intercept's share of the variance of m_r that the nuisance columns leave
+    others = Xs[:, 1:]
+    r0 = m - others @ np.linalg.lstsq(others, m, rcond=None)[0] if others.shape[1] else m
+    rss0 = float(r0 @ r0)
+    impulse = float(c[0] / scale[0])
+    # where it lies: the mean aligned residual against the time from the reversal (smoothed accelerations
+    # here: a plot, not a test), in at most 40 bins
+    off = dt0.ravel()
+    u = ((jd.tau[idx] - J * jd.a[idx] - F) * s_new[:, None]).ravel()[w.ravel() > 0]
+    off = off[w.ravel() > 0]
+    edges = np.linspace(-n_w * h, n_w * h, min(2 * n_w, 40) + 1)
+    b = np.clip(np.searchsorted(edges, off, side="right") - 1, 0, edges.size - 2)
+    cnt = np.bincount(b, minlength=edges.size - 1)
+    mean = np.bincount(b, weights=u, minlength=edges.size - 1)
+    okb = cnt > 0
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    return {"p": p, "share": 1.0 - rss1 / max(rss0, 1e-300), "impulse": impulse, "t": float(c[0]) / max(se, 1e-300),
+            "left_out_bound": float(bound / scale[0]), "vif": vif, "reversals": int(fa.size),
+            "reversals_at_a_sample": int(np.sum(at_t0.any(1))), "window_s": n_w * h, "kc": kc,
+            "profile_time_s": [float(x) for x in centres[okb]],
+            "profile_mean_residual": [float(x) for x in mean[okb] / cnt[okb]]}
+
+
 def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) -> list:
     """Remaining structure of the final held-out residual (list of dicts; empty when none)."""
     from drake_est.diagnose.nominal import block_index
@@ -216,12 +385,21 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
             r = _time_shift(prep, fit, j)
             if r is not None:
                 tests.append((j, "time_shift_torque_vs_position", r))
+        # at any sample rate: the torque impulse at velocity reversals (momentum balance, no filtered qdd)
+        r = reversal_impulse(prep, fit, j)
+        if r is not None:
+            tests.append((j, "velocity_reversals", r))
     n_tests = max(len(tests), 1)
     from drake_est.diagnose.quantization import torque_step
     steps = {j: prep.meta.get("tau_step", {}).get(j, None) for j in prep.joints}
     steps = {j: (torque_step(prep.joints[j].tau) if s is None else s) for j, s in steps.items()}
     var = {j: float(np.var((jd.y - fit.pred[j])[jd.val])) for j, jd in prep.joints.items()}
     for j, name, r in tests:
+        if name == "velocity_reversals":
+            d = _reversal_entry(j, r, steps[j], alpha / n_tests, min_share)
+            if d is not None:
+                out.append(d)
+            continue
         p, share, where = r[:3]
         v_e = r[3] if len(r) > 3 else var[j]
         # a quantized torque leaves a deterministic error below one step that follows the torque level
@@ -243,6 +421,28 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
                 d["largest_deviation_bin_upper_edge"] = where
             out.append(d)
     return sorted(out, key=lambda d: -d["share_of_residual_variance"])
+
+
+def _reversal_entry(j, r, step, alpha, min_share):
+    """The report entry of :func:`reversal_impulse` when significant, else None.  A quantized torque's error
+    (at most half a step per sample) can bias the impulse over the 2 n samples of a window by at most
+    step * n h: a smaller mean impulse is not reported."""
+    if not (r["p"] < alpha and r["share"] >= min_share):
+        return None
+    if step > 0 and abs(r["impulse"]) < step * r["window_s"]:
+        return None
+    w = r["window_s"]
+    return {"joint": int(j), "variable": "velocity_reversals", "p_value": r["p"],
+            "share_of_residual_variance": float(r["share"]),
+            "share_of": "variance of the residual torque impulse per reversal",
+            "samples": f"{r['reversals']} velocity reversals, {w:.3g} s before and after each",
+            "test": "t-test of the mean residual torque impulse per velocity reversal (momentum balance over the "
+                    "window; inertia, viscous and offset errors regressed out)",
+            "where": "torque " + ("missing" if r["impulse"] < 0 else "in excess") + " in the direction of the new "
+                     "motion around velocity reversals",
+            "impulse_per_reversal": r["impulse"], "window_s": w, "reversals": r["reversals"],
+            "coulomb_step_equivalent_s": abs(r["impulse"]) / max(2.0 * abs(r["kc"]), 1e-12),
+            "profile_time_s": r["profile_time_s"], "profile_mean_residual": r["profile_mean_residual"]}
 
 
 def next_experiments(prep, steps, duration) -> list:
