@@ -104,3 +104,45 @@ def test_quantization_bound_rejects_fitting_the_rounding_error():
     fit0b = SimpleNamespace(pred={1: true}, rss_val={1: float(((y2 - true)[val] ** 2).sum())})
     fit1b = SimpleNamespace(pred={1: true + effect}, rss_val={1: float(((y2 - true - effect)[val] ** 2).sum())})
     assert _above_quantization(prep, fit0b, fit1b, ext)
+
+
+# --- the closed-loop generator (drake_est.diagnose.testbench_loop): residuals locked to the motion -------------
+
+def _loop_case(k):
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_diagnose_testbench import loop_cases
+    from drake_est.diagnose.testbench_loop import generate as generate_loop
+    s = loop_cases(100)[k]
+    return generate_loop(s["effects"], seed=s["seed"], duration=s["duration"], sample_rate=s["sample_rate"],
+                         noise=s["noise"], noise_std=s["noise_std"])
+
+
+def test_motion_lines_are_the_multisine_frequencies():
+    from types import SimpleNamespace
+    from drake_est.diagnose.detectors import motion_lines_hz
+    t = np.arange(0, 200, 0.01)
+    v = 1.0 * np.sin(2 * np.pi * 0.05 * t) + 0.6 * np.sin(2 * np.pi * 0.16 * t) + 0.05 * np.sin(2 * np.pi * 0.4 * t)
+    q = np.cumsum(v) * 0.01
+    lines = motion_lines_hz(SimpleNamespace(t=t, v=v, q=q))
+    assert np.min(np.abs(lines - 0.05)) < 0.006 and np.min(np.abs(lines - 0.16)) < 0.006
+    assert np.min(np.abs(lines - 0.4)) > 0.006            # 5 % of the strongest: not a line of the motion
+
+
+def test_misfit_at_a_multisine_line_is_not_a_disturbance():
+    # loop case 30: a spring load and a Lorentzian Stribeck under a multisine; the misfit of the Stribeck law
+    # repeats at the multisine's 0.175 Hz and was named time_periodic_disturbance (then a 2 s "thermal" drift)
+    log, truth = _loop_case(30)
+    names, d = _names(diagnose(log, robot="generic", seed=0, simulate=False))
+    assert names == {"position_dependent_load", "stribeck"}, d["findings"]
+
+
+def test_disturbance_with_a_harmonic_is_one_finding():
+    # loop case 67: a 0.5 Hz force with a second harmonic; the harmonic was left over and named a ripple
+    log, truth = _loop_case(67)
+    names, d = _names(diagnose(log, robot="generic", seed=0, simulate=False))
+    assert names == {"time_periodic_disturbance"}, d["findings"]
+    f = d["findings"][0]
+    assert abs(f["parameters"]["frequency_hz"] - 0.5) < 0.01
+    assert any(abs(h["frequency_hz"] - 1.0) < 0.02 for h in f["parameters"].get("harmonics", []))

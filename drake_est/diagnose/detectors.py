@@ -264,6 +264,10 @@ class _Sub:
         return self.pc.regressors(q, v, which=self.which)
 
 
+#: shortest time constant [s] of the energy/thermal state scanned by :func:`energy`
+THERMAL_MIN_TAU_S = 30.0
+
+
 def energy(jd, r, friction_full, fit_train, n_iter=2, energy_fn=None):
     """Algorithm 6 with a variable-projection search over tau_e: E = H(s) W with W = |F qd| from
     the current friction estimate, the gain k_e linear; tau_e by training error on a log grid.
@@ -273,7 +277,10 @@ def energy(jd, r, friction_full, fit_train, n_iter=2, energy_fn=None):
     t = jd.t
     T = float(t[-1] - t[0])
     h = float(np.median(np.diff(t)))
-    taus = np.geomspace(max(2.0, 0.005 * T, 20 * h), 3.0 * T, 28)
+    # a thermal state: the lubricant and gearbox take minutes to warm (Sec. 9.2, Fig. 9.3); a "drift" with a time
+    # constant of seconds is a low-pass of the recent speed, which competes with the speed laws (Stribeck) and
+    # fits their misfit instead, so the scan starts at THERMAL_MIN_TAU_S
+    taus = np.geomspace(min(max(THERMAL_MIN_TAU_S, 0.005 * T, 20 * h), T), 3.0 * T, 28)
     v = jd.v
     F = friction_full
     best = None
@@ -493,6 +500,53 @@ def stribeck(jd, r, fit_inner):
     return Extension("stribeck", jd.joint, {jd.joint: C}, ["ks"], spec, ev)
 
 
+#: a line of the motion's own spectrum (qd(t) or |qd|(t)) counts when its amplitude is at least this share of the
+#: strongest line (:func:`motion_lines_hz`)
+MOTION_LINE_SHARE = 0.25
+
+
+#: ... and its position swing at that frequency at least this share of the position range
+MOTION_LINE_SWING = 0.01
+
+
+def motion_lines_hz(jd, share: float = MOTION_LINE_SHARE, swing: float = MOTION_LINE_SWING) -> np.ndarray:
+    """Frequencies [Hz] of the strong lines of the motion itself: local maxima of the amplitude spectrum of qd(t)
+    and of |qd|(t) (whole log, Hann window) with at least ``share`` of the strongest one's amplitude, where the
+    position also swings by at least ``swing`` of its range (a least-squares sinusoid of q at that frequency).
+    Every state-dependent misfit g(q, qd) of the model repeats with the motion, so a residual periodic at one of
+    these frequencies cannot be told from such a misfit: it is no evidence of a disturbance from outside the axis.
+    (A disturbance the servo does not fully reject moves the axis at its own frequency too, but only by a small
+    position swing: that line is not the motion's.)"""
+    v = np.asarray(jd.v, float)
+    if v.size < 16:
+        return np.array([])
+    t = np.asarray(jd.t, float)
+    q = np.asarray(jd.q, float) if getattr(jd, "q", None) is not None else None
+    h = float(np.median(np.diff(t)))
+    F = np.fft.rfftfreq(v.size, h)
+    w = np.hanning(v.size)
+    cand = []
+    for x in (v - v.mean(), np.abs(v) - np.abs(v).mean()):
+        A = np.abs(np.fft.rfft(x * w))
+        A[0] = 0.0
+        top = float(A.max())
+        if top <= 0:
+            continue
+        pk = np.flatnonzero((A[1:-1] >= A[:-2]) & (A[1:-1] >= A[2:]) & (A[1:-1] >= share * top)) + 1
+        cand += F[pk].tolist()
+    out = []
+    span = float(np.ptp(q)) if q is not None else 0.0
+    for f in np.unique(np.asarray(cand, float)):
+        if q is not None and span > 0:
+            wt = 2 * np.pi * f * t
+            B = np.column_stack([np.ones_like(t), t - t.mean(), np.cos(wt), np.sin(wt)])
+            c = np.linalg.lstsq(B, q, rcond=None)[0]
+            if np.hypot(c[2], c[3]) < swing * span:
+                continue
+        out.append(f)
+    return np.asarray(out, float)
+
+
 def time_periodic(jd, r, n_components=1):
     """A torque periodic in *time* (pump, fan, neighbouring machine): the least-squares periodogram of
     the training residual over time (the spectral tools of Ch. 10 with time as the sampling location,
@@ -520,6 +574,14 @@ def time_periodic(jd, r, n_components=1):
         return None
     if freqs.size == 0:
         return None
+    # frequencies of the motion's own strong lines (within two resolution bins, 1 / T) are not scanned: there a
+    # state-dependent misfit repeats with the motion and looks periodic in time (motion_lines_hz)
+    ess = np.asarray(ess, float).copy()
+    T_log = float(np.ptp(jd.t))
+    for fl in motion_lines_hz(jd):
+        ess[np.abs(freqs - fl) <= 2.0 / max(T_log, 1e-12)] = -np.inf
+    if not np.isfinite(ess).any():
+        return None
     f = float(freqs[int(np.argmax(ess))])
     # refine the frequency off the scan grid (least squares over a fine local grid, +- one grid step)
     df = float(freqs[1] - freqs[0]) if freqs.size > 1 else 0.0
@@ -538,9 +600,35 @@ def time_periodic(jd, r, n_components=1):
     # speed; a motion-locked error that a sinusoid in time happens to fit shows at some speeds only
     if not present_at_all_speeds(C[tr], v[tr], rt):
         return None
-    spec = {"effect": "time_periodic_disturbance", "frequencies_hz": [f]}
     B = np.column_stack([np.ones_like(tt), C[tr]])
     c = np.linalg.lstsq(B, rt, rcond=None)[0]
-    ev = {"frequency_hz": f, "amplitude_train": float(np.hypot(c[1], c[2])),
+    amp = float(np.hypot(c[1], c[2]))
+    # a pump or a fan is rarely a pure sinusoid: its harmonics 2f, 3f (below Nyquist) join the candidate when
+    # each lowers the training residual by a partial F-test at p < 1e-6; left out, a harmonic stays in the
+    # residual and is later taken for another effect
+    import scipy.stats
+    freqs_h = [f]
+    e_cur = rt - B @ c
+    for k in (2, 3):
+        fk = k * f
+        if fk >= 0.45 / h:
+            break
+        wk = 2 * np.pi * fk * tt
+        Bk = np.column_stack([B, np.cos(wk), np.sin(wk)])
+        ek = rt - Bk @ np.linalg.lstsq(Bk, rt, rcond=None)[0]
+        rss0, rss1 = float(e_cur @ e_cur), float(ek @ ek)
+        dof = max(tt.size - Bk.shape[1], 1)
+        F = ((rss0 - rss1) / 2.0) / max(rss1 / dof, 1e-300)
+        if F > 0 and scipy.stats.f.sf(F, 2, dof) < 1e-6:
+            freqs_h.append(fk)
+            B, e_cur = Bk, ek
+    if len(freqs_h) > 1:
+        W = 2 * np.pi * np.outer(t, np.asarray(freqs_h))
+        C = np.hstack([np.cos(W), np.sin(W)])
+    spec = {"effect": "time_periodic_disturbance", "frequencies_hz": freqs_h}
+    ev = {"frequency_hz": f, "amplitude_train": amp, "harmonics_hz": freqs_h[1:],
           "speed_levels_rad_s": [float(x) for x in np.quantile(np.abs(v), [0.1, 0.5, 0.9])]}
-    return Extension("time_periodic_disturbance", jd.joint, {jd.joint: C}, ["a_cos", "a_sin"], spec, ev)
+    names = [f"a_cos_{i + 1}" for i in range(len(freqs_h))] + [f"a_sin_{i + 1}" for i in range(len(freqs_h))]
+    if len(freqs_h) == 1:
+        names = ["a_cos", "a_sin"]
+    return Extension("time_periodic_disturbance", jd.joint, {jd.joint: C}, names, spec, ev)

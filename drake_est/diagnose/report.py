@@ -110,7 +110,11 @@ def effect_parameters(result, ext, model, fit) -> dict:
     elif ext.effect == "stribeck":
         d = {"kc": kc, "ks": float(c[0]), "vs": ext.spec["vs"], "delta": ext.spec["delta"], "kv": kv}
     elif ext.effect == "time_periodic_disturbance":
-        d = {"frequency_hz": ext.spec["frequencies_hz"][0], "amplitude": float(np.hypot(c[0], c[1]))}
+        fr = list(ext.spec["frequencies_hz"])
+        n = len(fr)       # columns [cos f1..fn, sin f1..fn] (extensions.columns_at)
+        d = {"frequency_hz": fr[0], "amplitude": float(np.hypot(c[0], c[n]))}
+        if n > 1:
+            d["harmonics"] = [{"frequency_hz": fr[i], "amplitude": float(np.hypot(c[i], c[n + i]))} for i in range(1, n)]
     elif ext.effect == "position_dependent_load":
         from drake_est.diagnose.detectors import gaussian_features
         qq = np.linspace(*ext.evidence["range_rad"], 200)
