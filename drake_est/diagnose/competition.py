@@ -138,7 +138,8 @@ def periodic_nuisance(prep, model, fit, j):
     cols = []
     rk = r
     for _ in range(NUISANCE_SINUSOIDS):
-        e = det.time_periodic(jd, rk)
+        # motion-locked sinusoids included: the nuisance stands for any periodic structure of the residual
+        e = det.time_periodic(jd, rk, skip_motion_lines=False)
         if e is None:
             break
         cols.append(e.cols[j])

@@ -547,12 +547,14 @@ def motion_lines_hz(jd, share: float = MOTION_LINE_SHARE, swing: float = MOTION_
     return np.asarray(out, float)
 
 
-def time_periodic(jd, r, n_components=1):
+def time_periodic(jd, r, n_components=1, skip_motion_lines=True):
     """A torque periodic in *time* (pump, fan, neighbouring machine): the least-squares periodogram of
     the training residual over time (the spectral tools of Ch. 10 with time as the sampling location,
     :func:`~drake_est.spectral.detect.fft_scan`), beyond [sign(qd), qd]; the strongest frequency f [Hz]
     gives columns cos, sin(2 pi f t).  Unlike the motor ripple its frequency does not scale with speed,
-    so on logs with several speeds the two are told apart by the held-out comparison."""
+    so on logs with several speeds the two are told apart by the held-out comparison.  ``skip_motion_lines``:
+    frequencies of the motion's own strong lines are not scanned (:func:`motion_lines_hz`; off where any
+    periodic structure is wanted, e.g. the periodic nuisance of :mod:`~drake_est.diagnose.competition`)."""
     from drake_est.errors import DrakeEstError
     from drake_est.spectral.detect import fft_scan
 
@@ -578,7 +580,7 @@ def time_periodic(jd, r, n_components=1):
     # state-dependent misfit repeats with the motion and looks periodic in time (motion_lines_hz)
     ess = np.asarray(ess, float).copy()
     T_log = float(np.ptp(jd.t))
-    for fl in motion_lines_hz(jd):
+    for fl in (motion_lines_hz(jd) if skip_motion_lines else ()):
         ess[np.abs(freqs - fl) <= 2.0 / max(T_log, 1e-12)] = -np.inf
     if not np.isfinite(ess).any():
         return None
