@@ -474,8 +474,20 @@ def next_experiments(prep, steps, duration) -> list:
                         "speed_range": [0.01 * vmax, 0.3 * vmax],
                         "experiment": f"constant-speed sweeps of joint {j} at 8 speeds from {0.01 * vmax:.3g} "
                                       f"to {0.3 * vmax:.3g} per s (log spaced), 10 s each, both directions"})
-        lo, hi = np.quantile(v, [0.1, 0.9])
-        if hi < 1.3 * lo and not any(e.get("joint") == j and "ripple" in e.get("experiment", "") for e in out):
+        named = {s.ext.effect for s in steps if int(s.ext.joint) == int(j)}
+        if stribeck_speeds(jd.v[jd.rows]).size and "stribeck" not in named and v.size:
+            # the Stribeck scan starts at half the slowest selected speed: a hump below that is not testable here
+            lo_sel = float(np.quantile(v, 0.02))
+            vmax = float(np.quantile(v, 0.95))
+            if lo_sel > 0.02 * vmax:
+                out.append({"reason": f"stribeck with vs below {0.5 * lo_sel:.3g} per s untestable: the slowest "
+                                      f"selected speed is {lo_sel:.3g} per s (data selection (9.9))",
+                            "joint": int(j), "speed_range": [0.01 * vmax, lo_sel],
+                            "experiment": f"constant-speed sweeps of joint {j} at 6 speeds from {0.01 * vmax:.3g} to "
+                                          f"{lo_sel:.3g} per s (log spaced), 10 s each, both directions"})
+        # one speed level: the same test as the competition's (competition.speed_level_ratio)
+        from drake_est.diagnose.competition import ONE_SPEED_RATIO, speed_level_ratio
+        if speed_level_ratio(jd) < ONE_SPEED_RATIO and not any(e.get("joint") == j and "ripple" in e.get("experiment", "") for e in out):
             out.append({"reason": "one speed only: position-periodic and time-periodic cannot be told apart",
                         "joint": int(j), "speeds": [float(0.4 * np.median(v)), float(2.0 * np.median(v))],
                         "experiment": f"sweeps of joint {j} at {0.4 * np.median(v):.3g} and "
