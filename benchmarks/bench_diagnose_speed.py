@@ -11,6 +11,7 @@ Wall time and process CPU time (``time.process_time``) are both written: on a ma
 jobs the CPU time is the meaningful number.  BLAS runs single-threaded inside ``diagnose``.
 
 Usage: python benchmarks/bench_diagnose_speed.py [--n 10] [--json OUT.json]
+       python benchmarks/bench_diagnose_speed.py --markdown benchmarks/results/diagnose_speed.json  (README table)
 """
 from __future__ import annotations
 
@@ -24,7 +25,27 @@ EFFECTS = ("motor_position_ripple", "stribeck", "time_periodic_disturbance", "en
 N_SAMPLES = 45000
 
 
+def readme_table(out, source="diagnose_speed.json") -> list:
+    """The README table lines for a result of :func:`main` (tests/test_diagnose_speed_readme.py checks them)."""
+    return [f"| logs (`{source}`, load average {out['load_average_1min']:.1f} on {out['cpu_count']} cores) | wall | CPU "
+            "| slowest log, CPU | goal (issue 16) |",
+            "|---|---|---|---|---|",
+            f"| {out['n_generic_logs']} generic-axis testbench logs, 45,000 samples each | "
+            f"{out['generic_total_wall_s']:.1f} s | {out['generic_total_cpu_s']:.1f} s | {out['generic_max_cpu_s']:.1f} s | "
+            "10 logs < 60 s, one < 10 s |",
+            f"| one IRB 140 synth log, 45,000 samples | {out['irb140_wall_s']:.1f} s | {out['irb140_cpu_s']:.1f} s | "
+            "| < 10 s |"]
+
+
 def main(argv=None):
+    import sys
+    if argv is None:
+        argv = sys.argv[1:]
+    if len(argv) == 2 and argv[0] == "--markdown":
+        import json
+        out = json.load(open(argv[1]))
+        print("\n".join(readme_table(out, os.path.basename(argv[1]))))
+        return out
     from drake_est.data import Log
     from drake_est.diagnose import diagnose
     from drake_est.diagnose.testbench import generate
