@@ -82,6 +82,7 @@ def test_diagnose_per_axis_runs():
             assert r["final_heldout_rmse_N_m"] <= r["nominal_heldout_rmse_N_m"] + 1e-9
 
 
+@pytest.mark.slow   # ~50 s; the same case study runs in the default tests through tutorials/84_real_kuka
 @needs_data
 def test_cli_reproduce_real_kuka(tmp_path):
     out = tmp_path / "o"
