@@ -100,6 +100,18 @@ class Model:
             mask.append(m)
         return np.concatenate(mask)
 
+    def coef_slices(self, fit, j) -> dict:
+        """The coefficients of joint ``j`` in ``fit`` by part: ``{"nominal": {name: value}, effect: array}`` (own
+        extensions in the order of :meth:`design`)."""
+        names = nominal_names(self.prep.robot_kind)
+        c = fit.coef[j]
+        out = {"nominal": dict(zip(names, c[:len(names)]))}
+        k = len(names)
+        for e in self.own(j):
+            out[e.effect] = c[k:k + e.n_params]
+            k += e.n_params
+        return out
+
     def fit(self, sigma=None) -> Fit:
         prep = self.prep
         shared = self.shared_exts()
@@ -379,13 +391,7 @@ def backfit_changes(prep, model, fit, sigma):
             continue
         j = e.joint
         jd = prep.joints[j]
-        off = nominal_columns(jd, prep.robot_kind).shape[1]
-        for e2 in model.own(j):
-            if e2 is e:
-                break
-            off += e2.cols[j].shape[1]
-        c = fit.coef[j][off:off + e.n_params]
-        r_p = jd.y - fit.pred[j] + e.cols[j] @ c
+        r_p = jd.y - fit.pred[j] + e.cols[j] @ model.coef_slices(fit, j)[e.effect]
         drift = any(x.effect == "energy_dependent_friction" and x.joint == j for x in model.exts)
         new = det.change_point(jd, r_p, smooth_alternative=drift)
         if new is None or new.spec["t_change"] == e.spec["t_change"]:

@@ -284,18 +284,14 @@ def _own_kernels(qj, vj, idx, t, y, Xb):
     span = hi - lo
     if span < 0.02:
         return none
-    folds = _inner_folds(t, idx)
     s = np.sign(vj)[:, None]
-    best = (_inner_rss(Xb, y, folds)[0], none)
-    for K in OWN_KERNELS:
-        G = gaussian_features(qj, np.linspace(lo, hi, K), span / (K - 1))
-        C = np.hstack([G, s * G])
-        if Xb.shape[1] + C.shape[1] >= 0.5 * min(f[0].sum() for f in folds):
-            break
-        err = _inner_rss(np.hstack([Xb, C]), y, folds)[0]
-        if err < best[0]:
-            best = (err, C)
-    return best[1]
+
+    def kernels():
+        for K in OWN_KERNELS:
+            G = gaussian_features(qj, np.linspace(lo, hi, K), span / (K - 1))
+            yield np.hstack([G, s * G])
+
+    return _best_nuisance(kernels(), Xb, y, _inner_folds(t, idx), none)
 
 
 def _friction_segments(vj, idx, t, y, Xb):
@@ -303,15 +299,25 @@ def _friction_segments(vj, idx, t, y, Xb):
     nuisance at the rows ``idx``: friction that changes over the log (an abrupt change, an energy drift: the
     time-varying candidates of the diagnosis) would otherwise be absorbed by slow coupled columns.  The number of
     segments (none or one of :data:`FRICTION_SEGMENTS`) is chosen like the kernels' (:func:`_own_kernels`)."""
-    folds = _inner_folds(t, idx)
     tt = t[idx]
     t0, t1 = float(t[0]), float(t[-1])
-    best = (_inner_rss(Xb, y, folds)[0], np.zeros((idx.size, 0)))
-    for S in FRICTION_SEGMENTS:
-        seg = np.minimum(((tt - t0) / max(t1 - t0, 1e-12) * S).astype(int), S - 1)
-        H = (seg[:, None] == np.arange(1, S)[None, :]).astype(float)
-        C = np.hstack([H * vj[:, None], H * np.sign(vj)[:, None]])
-        C = C[:, np.linalg.norm(C, axis=0) > 0]
+
+    def segments():
+        for S in FRICTION_SEGMENTS:
+            seg = np.minimum(((tt - t0) / max(t1 - t0, 1e-12) * S).astype(int), S - 1)
+            H = (seg[:, None] == np.arange(1, S)[None, :]).astype(float)
+            C = np.hstack([H * vj[:, None], H * np.sign(vj)[:, None]])
+            yield C[:, np.linalg.norm(C, axis=0) > 0]
+
+    return _best_nuisance(segments(), Xb, y, _inner_folds(t, idx), np.zeros((idx.size, 0)))
+
+
+def _best_nuisance(candidates, Xb, y, folds, none):
+    """The candidate column block (of growing size) with the lowest inner held-out RSS (:func:`_inner_rss`) of
+    ``[Xb, C]``, or ``none`` when no candidate beats ``Xb`` alone; candidates stop once ``[Xb, C]`` would have half
+    as many columns as the smaller fold has fitting rows."""
+    best = (_inner_rss(Xb, y, folds)[0], none)
+    for C in candidates:
         if Xb.shape[1] + C.shape[1] >= 0.5 * min(f[0].sum() for f in folds):
             break
         err = _inner_rss(np.hstack([Xb, C]), y, folds)[0]

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_est.diagnose.nominal import n_blocks_for, nominal_names
+from drake_est.diagnose.nominal import n_blocks_for
 from drake_est.diagnose.multilog import across_logs_evidence, per_log_table
 
 EFFECT_TEXT = {
@@ -55,17 +55,6 @@ def _r(x, nd=6):
     return x
 
 
-def _coef_slices(model, fit, j):
-    names = nominal_names(model.prep.robot_kind)
-    c = fit.coef[j]
-    out = {"nominal": dict(zip(names, c[:len(names)]))}
-    k = len(names)
-    for e in model.own(j):
-        out[e.effect] = c[k:k + e.n_params]
-        k += e.n_params
-    return out
-
-
 def effect_parameters(result, ext, model, fit) -> dict:
     """Physical parameters of one accepted extension from the fit where it was accepted."""
     prep = result.prep
@@ -78,7 +67,7 @@ def effect_parameters(result, ext, model, fit) -> dict:
             d["mass_kg"] = pl[0]
             d["com_in_flange_m"] = pl[1]
         return d
-    sl = _coef_slices(model, fit, ext.joint)
+    sl = model.coef_slices(fit, ext.joint)
     kv, kc = sl["nominal"]["kv"], sl["nominal"]["kc"]
     c = sl[ext.effect]
     d = {}
@@ -175,7 +164,7 @@ class DiagnosisReport:
         from drake_est.diagnose.core import Model
         nom_params = {}
         for j, jd in prep.joints.items():
-            p = _coef_slices(Model(prep), res.nominal_fit, j)["nominal"]
+            p = Model(prep).coef_slices(res.nominal_fit, j)["nominal"]
             if "inertia" in jd.counts:
                 p["J"] = jd.counts["inertia"]
             nom_params[str(j)] = p

@@ -168,6 +168,16 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     return p, gain / ss, k * h, float(ss / n)
 
 
+def _model_off_selection(prep, fit):
+    """The final model when it can be evaluated at samples the data selection (9.9) left out, else None: not for
+    robot models (the rigid-body torque is only computed at the selected rows) nor with shared-parameter
+    extensions (gear coupling, payload)."""
+    if prep.robot is not None:
+        return None
+    model = getattr(fit, "_model", None)
+    return None if model is None or model.shared_exts() else model
+
+
 def _excluded_moving(prep, fit, j, n_max=20000):
     """ANOVA over jerk of the final model's residual on the *moving but accelerating* samples that
     the data selection (9.9) left out (a delay between torque and position, backlash or an inertia error
@@ -177,10 +187,8 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     or when too few such samples exist; else {variable: (p, share, where) or None}."""
     from drake_est.identification.friction.extensions import columns_at
     jd = prep.joints[j]
-    if prep.robot is not None:
-        return None       # the rigid-body torque is only computed at the selected rows
-    model = getattr(fit, "_model", None)
-    if model is None or model.shared_exts():
+    model = _model_off_selection(prep, fit)
+    if model is None:
         return None
     thr = jd.counts["thresholds"]
     idx = np.flatnonzero((np.abs(jd.v) > thr["v_min"]) & (np.abs(jd.a) > thr["a_max"]))
@@ -258,10 +266,8 @@ def reversal_impulse(prep, fit, j, margin_s=REVERSAL_MARGIN_S):
     A delay d between torque and position samples leaves c = -2 k_c d, a dead band the torque missing while
     it is crossed.  Returns a dict (p, share, impulse, ...) or None (robot models, too few reversals)."""
     jd = prep.joints[j]
-    if prep.robot is not None:
-        return None       # the rigid-body torque is only computed at the selected rows
-    model = getattr(fit, "_model", None)
-    if model is None or model.shared_exts():
+    model = _model_off_selection(prep, fit)
+    if model is None:
         return None
     N = jd.t.size
     h = float(np.median(np.diff(jd.t)))
@@ -447,6 +453,7 @@ def _reversal_entry(j, r, step, alpha, min_share):
 
 def next_experiments(prep, steps, duration) -> list:
     """Experiments that would decide what this log cannot: ambiguous findings and untestable candidates."""
+    from drake_est.diagnose.competition import ONE_SPEED_RATIO, speed_level_ratio
     from drake_est.diagnose.detectors import stribeck_speeds
     out = []
     for s in steps:
@@ -468,14 +475,15 @@ def next_experiments(prep, steps, duration) -> list:
             out.append(exp)
     for j, jd in prep.joints.items():
         v = np.abs(jd.v[jd.rows])
-        if stribeck_speeds(jd.v[jd.rows]).size == 0:
+        testable = stribeck_speeds(jd.v[jd.rows]).size > 0
+        if not testable:
             vmax = float(np.quantile(v, 0.95))
             out.append({"reason": "stribeck untestable: too few low-speed samples", "joint": int(j),
                         "speed_range": [0.01 * vmax, 0.3 * vmax],
                         "experiment": f"constant-speed sweeps of joint {j} at 8 speeds from {0.01 * vmax:.3g} "
                                       f"to {0.3 * vmax:.3g} per s (log spaced), 10 s each, both directions"})
         named = {s.ext.effect for s in steps if int(s.ext.joint) == int(j)}
-        if stribeck_speeds(jd.v[jd.rows]).size and "stribeck" not in named and v.size:
+        if testable and "stribeck" not in named and v.size:
             # the Stribeck scan starts at half the slowest selected speed: a hump below that is not testable here
             lo_sel = float(np.quantile(v, 0.02))
             vmax = float(np.quantile(v, 0.95))
@@ -486,7 +494,6 @@ def next_experiments(prep, steps, duration) -> list:
                             "experiment": f"constant-speed sweeps of joint {j} at 6 speeds from {0.01 * vmax:.3g} to "
                                           f"{lo_sel:.3g} per s (log spaced), 10 s each, both directions"})
         # one speed level: the same test as the competition's (competition.speed_level_ratio)
-        from drake_est.diagnose.competition import ONE_SPEED_RATIO, speed_level_ratio
         if speed_level_ratio(jd) < ONE_SPEED_RATIO and not any(e.get("joint") == j and "ripple" in e.get("experiment", "") for e in out):
             out.append({"reason": "one speed only: position-periodic and time-periodic cannot be told apart",
                         "joint": int(j), "speeds": [float(0.4 * np.median(v)), float(2.0 * np.median(v))],
