@@ -40,6 +40,7 @@ def test_crosslog_diagnosed_gain():
     assert "motor_position_ripple" in res["diagnosis_train"]["transferred"]
 
 
+@pytest.mark.slow   # ~25 s; tutorials/80_real_cogging runs the same case study (cogging_diagnosis_study, quick) by default
 @needs_data
 def test_cli_reproduce_real_cogging(tmp_path):
     out = tmp_path / "o"

@@ -85,6 +85,7 @@ def test_diagnose_finds_position_effects():
     assert d["final_heldout_rmse_N"] < 0.8 * d["nominal_heldout_rmse_N"]
 
 
+@pytest.mark.slow   # ~25 s; tutorials/83_real_emps runs the same case study (emps_case_study, quick) by default
 @needs_data
 def test_cli_reproduce_real_emps(tmp_path):
     out = tmp_path / "o"

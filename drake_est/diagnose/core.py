@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import scipy.linalg
 import scipy.stats
 
 import drake_est.diagnose.competition as comp
@@ -47,10 +48,15 @@ class Fit:
     rss_val: dict         # joint -> validation RSS
     n_params: int
     per_log: dict = field(default_factory=dict)   # joint -> {log: [dkv, dkc]} (several logs, multilog.py)
+    kv_held: set = field(default_factory=set)     # joints whose viscous coefficient is held at 0 (solve_kv_nonneg)
 
 
 N_NOMINAL = 2          # nominal columns per joint [qd, sign(qd)], never penalized
 RIDGE = 1e-4           # relative ridge on extension columns (times each column's energy)
+#: inertia backfit of generic axes: a correction dJ is applied when |dJ| exceeds this many standard errors ...
+INERTIA_BACKFIT_Z = 5.0
+#: ... and this fraction of J
+INERTIA_BACKFIT_REL = 0.05
 
 
 def _ridge_lstsq(A, y, penalize):
@@ -68,8 +74,33 @@ def _ridge_lstsq(A, y, penalize):
     return ridge_solve(A, y, RIDGE, mask.astype(float), column_scaled=True)
 
 
+def solve_kv_nonneg(solve, A, y, kv_cols=(0,)):
+    """``solve(A, y)`` with the viscous coefficients at ``kv_cols`` kept >= 0 (a viscous friction does not
+    decrease with speed, Sec. 9.1).  Unconstrained first; the columns whose coefficient comes out negative are
+    fixed at zero and the rest solved again (the exact constrained optimum for one such column, the convex
+    problem's minimum lies on its bound).  A friction that falls with speed over the whole selected range is
+    then left in the residual, where only a speed law of the vocabulary (Stribeck) can take it; fitted as a
+    negative kv it was absorbed instead by whatever correlates with speed (an energy state, a change of the
+    speed profile).  Returns (coefficients, set of the columns held at zero)."""
+    c = solve(A, y)
+    neg = [i for i in kv_cols if c[i] < 0]
+    if not neg:
+        return c, set()
+    keep = np.ones(A.shape[1], bool)
+    keep[neg] = False
+    out = np.zeros(A.shape[1])
+    out[keep] = solve(A[:, keep], y, keep)
+    return out, set(neg)
+
+
+def _lstsq_kv(A, y):
+    """Least squares with kv (column 0, the first nominal column) >= 0: the candidates' inner fits."""
+    return solve_kv_nonneg(lambda A_, y_, keep=None: np.linalg.lstsq(A_, y_, rcond=None)[0], A, y)[0]
+
+
 class Model:
-    """Nominal model plus accepted extensions, fitted by (weighted, stacked) least squares."""
+    """Nominal model plus accepted extensions, fitted by (weighted, stacked) least squares; the viscous
+    coefficients are kept >= 0 (:func:`solve_kv_nonneg`)."""
 
     def __init__(self, prep, exts=()):
         self.prep = prep
@@ -118,10 +149,15 @@ class Model:
         pred, coef, rss = {}, {}, {}
         n_params = 0
         shared_coef = {}
+        kv_held = set()
         if not shared:
             for j, jd in prep.joints.items():
                 X = self.design(j)
-                c = _ridge_lstsq(X[jd.train], jd.y[jd.train], self.penalized(j))
+                pen = self.penalized(j)
+                c, held = solve_kv_nonneg(lambda A, y, keep=None, pen=pen: _ridge_lstsq(
+                    A, y, pen if keep is None else pen[keep]), X[jd.train], jd.y[jd.train])
+                if held:
+                    kv_held.add(j)
                 coef[j] = c
                 pred[j] = X @ c
                 n_params += X.shape[1]
@@ -145,7 +181,9 @@ class Model:
             pen = np.ones(P, dtype=bool)
             for k, j in enumerate(js):
                 pen[offs[k]:offs[k + 1]] = self.penalized(j)
-            c = _ridge_lstsq(A, np.concatenate(rows_y), pen)
+            c, held = solve_kv_nonneg(lambda A_, y_, keep=None: _ridge_lstsq(A_, y_, pen if keep is None else pen[keep]),
+                                      A, np.concatenate(rows_y), [int(o) for o in offs[:-1]])
+            kv_held |= {js[list(offs[:-1]).index(i)] for i in held}
             for k, j in enumerate(js):
                 coef[j] = c[offs[k]:offs[k + 1]]
                 pred[j] = own[j] @ coef[j] + S[k] @ c[offs[-1]:]
@@ -161,7 +199,7 @@ class Model:
                 pred[j], per_log[j] = per_log_offsets(jd, ids, pred[j])
             e = (jd.y - pred[j])[jd.val]
             rss[j] = float(e @ e)
-        return Fit(pred, coef, shared_coef, rss, n_params, per_log)
+        return Fit(pred, coef, shared_coef, rss, n_params, per_log, kv_held)
 
 
 def _val_metrics(prep, fit, joints=None):
@@ -175,6 +213,14 @@ def _val_metrics(prep, fit, joints=None):
 def _residual(prep, fit, j):
     jd = prep.joints[j]
     return jd.y - fit.pred[j]
+
+
+def _energy_cols(model, j):
+    """The columns of joint ``j``'s accepted energy-dependent friction, None when there is none."""
+    for e in model.own(j):
+        if e.effect == "energy_dependent_friction":
+            return e.cols[j]
+    return None
 
 
 def _candidates(prep, model, fit, accepted, cache=None, changed=None):
@@ -199,13 +245,13 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
 
         def fit_inner(C, X=X, y=y, a=inner_tr, b=inner_va):
             A = np.hstack([X, C])
-            c, *_ = np.linalg.lstsq(A[a], y[a], rcond=None)
+            c = _lstsq_kv(A[a], y[a])
             e = y[b] - A[b] @ c
             return float(e @ e)
 
         def fit_train(C, X=X, y=y, tr=jd.train):
             A = np.hstack([X, C])
-            c, *_ = np.linalg.lstsq(A[tr], y[tr], rcond=None)
+            c = _lstsq_kv(A[tr], y[tr])
             e = y[tr] - A[tr] @ c
             return float(e @ e), c[X.shape[1]:]
 
@@ -227,9 +273,10 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             F_full = kv * jd.v + kc * np.sign(jd.v)
             out.append(det.energy(jd, r, F_full, fit_train, energy_fn=energy_fn(prep)))
         if not have("abrupt_change"):
-            out.append(det.change_point(jd, r, smooth_alternative=have("energy_dependent_friction")))
+            out.append(det.change_point(jd, r, smooth_alternative=have("energy_dependent_friction"),
+                                        energy_cols=_energy_cols(model, j)))
         if not have("stribeck"):
-            out.append(det.stribeck(jd, r, fit_inner))
+            out.append(det.stribeck(jd, r, fit_inner, falling=j in fit.kv_held))
         if not have("time_periodic_disturbance"):
             out.append(det.time_periodic(jd, r))
         if not have("gear_coupling") and len(prep.joints) > 1:
@@ -345,7 +392,9 @@ def _model_solver(model, j):
     model's own penalty mask on its first columns (:meth:`Model.penalized`), every column after them penalized."""
     def solve(A, y, _n):
         m = model.penalized(j)
-        return _ridge_lstsq(A, y, np.concatenate([m, np.ones(A.shape[1] - m.size, bool)]))
+        pen = np.concatenate([m, np.ones(A.shape[1] - m.size, bool)])
+        return solve_kv_nonneg(lambda A_, y_, keep=None: _ridge_lstsq(A_, y_, pen if keep is None else pen[keep]),
+                               A, y)[0]
     return solve
 
 
@@ -393,7 +442,7 @@ def backfit_changes(prep, model, fit, sigma):
         jd = prep.joints[j]
         r_p = jd.y - fit.pred[j] + e.cols[j] @ model.coef_slices(fit, j)[e.effect]
         drift = any(x.effect == "energy_dependent_friction" and x.joint == j for x in model.exts)
-        new = det.change_point(jd, r_p, smooth_alternative=drift)
+        new = det.change_point(jd, r_p, smooth_alternative=drift, energy_cols=_energy_cols(model, j))
         if new is None or new.spec["t_change"] == e.spec["t_change"]:
             continue
         m2 = Model(prep, [new if x is e else x for x in model.exts])
@@ -403,6 +452,48 @@ def backfit_changes(prep, model, fit, sigma):
             moved.append((j, float(e.spec["t_change"]), float(new.spec["t_change"]), e, new))
             model, fit = m2, f2
     return model, fit, moved
+
+
+def backfit_inertia(prep, model, fit) -> dict:
+    """Backfitting of the inertia J of generic axes (the abrupt-change backfit's counterpart for the nominal
+    model).  ``prepare`` identifies J before any finding is known, on the moving samples with the nominal
+    friction only.  On closed-loop data that estimate is biased whenever an unmodeled torque moves the axis:
+    the controller answers the disturbance, so the acceleration and the omitted torque are correlated (the
+    classical bias of an open-loop fit of closed-loop data, Sec. 7.1's errors-in-variables setting).  Once the
+    findings are in the model that torque is a regressor and the bias goes: J is re-estimated as one more
+    column qdd_j beside the accepted model on the training rows.  A correction dJ larger than
+    ``INERTIA_BACKFIT_Z`` standard errors and ``INERTIA_BACKFIT_REL`` of J is applied to the joint's rigid-body
+    torque (rb += dJ qdd) and returned as {joint: (J_old, J_new)}; the caller repeats the search, since the
+    findings themselves may have been made to absorb the old J error (e.g. a position-dependent load that is
+    J-error times an acceleration correlated with position)."""
+    out = {}
+    if prep.robot is not None:
+        return out
+    shared = model.shared_exts()
+    for j, jd in prep.joints.items():
+        J = jd.counts.get("inertia")
+        if J is None:
+            continue
+        X = model.design(j)
+        if shared:
+            X = np.hstack([X] + [e.cols[j] for e in shared])
+        tr = jd.train
+        A = np.column_stack([jd.a[jd.rows], X])[tr]
+        y = jd.y[tr]
+        Qr, R = np.linalg.qr(A)
+        if abs(R[0, 0]) < 1e-12 or np.min(np.abs(np.diag(R))) < 1e-10 * np.max(np.abs(np.diag(R))):
+            continue    # qdd not excited on the selected rows, or collinear with the model: keep J
+        c = scipy.linalg.solve_triangular(R, Qr.T @ y)
+        e = y - A @ c
+        dof = max(A.shape[0] - A.shape[1], 1)
+        s2 = float(e @ e) / dof
+        # standard error of c[0]: sqrt(s2 * [(R^T R)^-1]_00), from the first row of R^-1
+        r_inv0 = scipy.linalg.solve_triangular(R.T, np.eye(A.shape[1])[:, 0], lower=True)
+        se = float(np.sqrt(s2 * (r_inv0 @ r_inv0)))
+        dJ = float(c[0])
+        if abs(dJ) > INERTIA_BACKFIT_Z * se and abs(dJ) > INERTIA_BACKFIT_REL * abs(J):
+            out[j] = (float(J), float(J + dJ))
+    return out
 
 
 def _search(prep, max_findings, alpha, min_gain):
@@ -470,20 +561,33 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
     t0 = time.perf_counter()
     prep = prepare(log, robot=robot, joints=joints, seed=seed)
     t_prep = time.perf_counter() - t0
-    for _pass in range(2):
+    screened = inertia_done = False
+    for _pass in range(3):
         out = _search(prep, max_findings, alpha, min_gain)
-        fit = out[4]
+        fit, model = out[4], out[5]
         new = 0
-        for j, jd in prep.joints.items():
-            e = jd.y - fit.pred[j]
-            med = np.median(e)
-            mad = 1.4826 * np.median(np.abs(e - med))
-            bad = np.abs(e - med) > OUTLIER_MAD * max(mad, 1e-12)
-            if bad.any() and _pass == 0:
-                new += int(bad.sum())
-                jd.counts["outliers"] = int(jd.counts.get("outliers", 0) + bad.sum())
-                jd.counts["outliers_found_after_extension"] = int(bad.sum())
-                jd.rows, jd.train, jd.val = jd.rows[~bad], jd.train[~bad], jd.val[~bad]
+        if not screened:
+            screened = True
+            for j, jd in prep.joints.items():
+                e = jd.y - fit.pred[j]
+                med = np.median(e)
+                mad = 1.4826 * np.median(np.abs(e - med))
+                bad = np.abs(e - med) > OUTLIER_MAD * max(mad, 1e-12)
+                if bad.any():
+                    new += int(bad.sum())
+                    jd.counts["outliers"] = int(jd.counts.get("outliers", 0) + bad.sum())
+                    jd.counts["outliers_found_after_extension"] = int(bad.sum())
+                    jd.rows, jd.train, jd.val = jd.rows[~bad], jd.train[~bad], jd.val[~bad]
+        if not new and not inertia_done and model.exts:
+            # the inertia with the findings as regressors (closed-loop bias), once; the search is repeated
+            # when it moves
+            inertia_done = True
+            for j, (J_old, J_new) in backfit_inertia(prep, model, fit).items():
+                jd = prep.joints[j]
+                jd.rb = jd.rb + (J_new - J_old) * jd.a
+                jd.counts["inertia"] = J_new
+                jd.counts["inertia_before_backfit"] = J_old
+                new += 1
         if not new:
             break
         prep.meta.pop("payload_ext", None)

@@ -307,11 +307,14 @@ def energy(jd, r, friction_full, fit_train, n_iter=2, energy_fn=None):
     return ext
 
 
-def change_point(jd, r, min_frac=0.1, smooth_alternative=False):
+def change_point(jd, r, min_frac=0.1, smooth_alternative=False, energy_cols=None):
     """Abrupt change of the friction parameters (Ch. 7): the best single switch of
     [qd, sign(qd)] parameters over the training samples by dynamic programming (7.8).  With
     ``smooth_alternative`` None when a smooth (quadratic in time) drift of the same parameters fits the
-    training residual as well by AIC (not abrupt)."""
+    training residual as well by AIC (not abrupt).  ``energy_cols``: the columns [sign(qd) E, qd E] of an accepted
+    energy-dependent friction (at the used rows); the smooth alternative then also holds their second order in the
+    state, [sign(qd) E^2, qd E^2] (a friction law of another shape in E than the linear (9.23), e.g. a viscous
+    coefficient exponential in the temperature, leaves a misfit that follows the warm-up and looks like a step)."""
     from drake_est.errors import DrakeEstError
     from drake_est.identification.ltv import tv_regression_segments
 
@@ -345,8 +348,14 @@ def change_point(jd, r, min_frac=0.1, smooth_alternative=False):
     tt = jd.t[rows]
     s_ = (tt - tt[0]) / max(float(np.ptp(tt)), 1e-12)
     D = np.column_stack([v * s_, _sgn(v) * s_, v * s_ ** 2, _sgn(v) * s_ ** 2])
+    if energy_cols is not None:
+        E = np.abs(np.asarray(energy_cols, float)[:, 0])
+        E = E / max(float(E.max()), 1e-300)
+        # the accepted law's own columns too: r is orthogonal to them on the training rows, and the second-order
+        # part alone would have to reproduce that projection
+        D = np.hstack([D, np.asarray(energy_cols, float), np.asarray(energy_cols, float) * E[:, None]])
     aic = []
-    for X, k_ in ((C, 3), (D, 4)):
+    for X, k_ in ((C, 3), (D, D.shape[1])):
         A = np.hstack([Phi, X])[tr]
         e = r[tr] - A @ np.linalg.lstsq(A, r[tr], rcond=None)[0]
         aic.append(tr.sum() * np.log(max(float(e @ e), 1e-300)) + 2 * k_)
@@ -447,22 +456,26 @@ STRIBECK_DELTAS = (1.0, 2.0)
 STRIBECK_MIN_LOW = 0.05
 
 
-def stribeck_speeds(v_sel):
+def stribeck_speeds(v_sel, falling: bool = False):
     """Grid of Stribeck velocities vs over which the selected speeds can identify the term: from half the
-    slowest selected speed to a third of the 95 % speed (log spaced)."""
+    slowest selected speed to a third of the 95 % speed (log spaced); up to the 95 % speed itself when the
+    friction falls with speed over the whole range (``falling``: the nominal viscous coefficient is held at
+    its bound 0), where the data hold only the hump's falling flank and a viscous term cannot take it."""
     av = np.abs(v_sel)
     lo, hi = float(np.quantile(av, 0.02)), float(np.quantile(av, 0.95))
     if not (hi > 0 and lo > 0) or hi / lo < 3.0:
         return np.array([])
-    return np.geomspace(0.5 * lo, hi / 3.0, 14)
+    top = hi if falling else hi / 3.0
+    return np.geomspace(0.5 * lo, top, 18 if falling else 14)
 
 
-def stribeck(jd, r, fit_inner):
+def stribeck(jd, r, fit_inner, falling: bool = False):
     """Stribeck friction (Sec. 9.1, (9.4)): kc + ks exp(-|qd/vs|^delta), i.e. one extra column
     sign(qd) exp(-|qd/vs|^delta) with ks linear; vs and delta chosen by the inner split.  None when the
-    selected speeds span less than a factor 3 (no low-speed data: untestable, see next_experiment)."""
+    selected speeds span less than a factor 3 (no low-speed data: untestable, see next_experiment).
+    ``falling``: see :func:`stribeck_speeds`."""
     v = jd.v[jd.rows]
-    grid = stribeck_speeds(v[jd.train])
+    grid = stribeck_speeds(v[jd.train], falling)
     if grid.size == 0:
         return None
     best = None
