@@ -283,10 +283,13 @@ def main(argv=None):
     ap.add_argument("--n-loop", type=int, default=100, help="logs from the closed-loop generator")
     ap.add_argument("--n-synth", type=int, default=8, help="synth logs (each diagnosed with generic and irb140)")
     ap.add_argument("--json", default=None)
-    ap.add_argument("--from-json", default=None, help="re-summarize the rows of an earlier --json output")
+    ap.add_argument("--from-json", default=None,
+                    help="re-summarize the rows of earlier --json outputs (comma-separated: e.g. one run per family, "
+                         "run in parallel, merged into one summary)")
     a = ap.parse_args(argv)
     if a.from_json:
-        summary = summarize(json.load(open(a.from_json))["rows"])
+        rows = [r for f in a.from_json.split(",") if f.strip() for r in json.load(open(f.strip()))["rows"]]
+        summary = summarize(rows)
         _print(summary)
         if a.json:
             from drake_est.jsonutil import dump_json

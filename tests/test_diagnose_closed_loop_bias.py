@@ -40,11 +40,20 @@ def test_inertia_backfit_removes_closed_loop_bias():
     the disturbance is named."""
     log, truth = generate({"time_periodic_disturbance": 1.0, "_f_hz": 2.0}, seed=3089, duration=120.0,
                           sample_rate=100.0, noise="gaussian", noise_std=0.057)
-    res = run_diagnosis(log, robot="generic")
+    from drake_est.diagnose import diagnose
+
+    rep = diagnose(log, robot="generic", seed=0, simulate=False)
+    res = rep.result
     c = res.prep.joints[1].counts
     assert c["inertia_before_backfit"] > 2.0 * truth["J"]          # the bias is there before the backfit
     assert c["inertia"] == pytest.approx(truth["J"], rel=0.10)
     assert [e.effect for e in res.final_model.exts] == ["time_periodic_disturbance"]
+    # the report gives both inertias with the nominal parameters, not among the excluded-sample counts
+    d = rep.to_dict()
+    p = d["nominal"]["parameters"]["1"]
+    assert p["J"] == pytest.approx(c["inertia"], rel=1e-4)
+    assert p["J_before_backfit"] == pytest.approx(c["inertia_before_backfit"], rel=1e-4)
+    assert "inertia_before_backfit" not in d["data"]["excluded"]["1"]
 
 
 def test_stribeck_seen_only_on_its_falling_flank():

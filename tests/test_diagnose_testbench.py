@@ -132,6 +132,14 @@ def test_readme_testbench_counts_are_the_measured_ones():
     assert (f"| final code of the first round, after item 6 (`diagnose_testbench_round1.json`) | {r1['correct']} | "
             f"{r1['wrong_names']} | {r1['missed']} | {r1['oov_unexplained_right']} / {r1['oov_logs']} | "
             f"{r1['null_logs_clean']} / {r1['null_logs']} |") in readme
+    # the second round's JSON: its testbench row and its loop family, quoted by the third round's section
+    r2 = mod.summarize(json.loads((root / "benchmarks" / "results" / "diagnose_testbench_round2.json").read_text())["rows"])
+    t2, l2 = r2["per_family"]["testbench"], r2["per_family"]["loop"]
+    assert (f"(testbench family of `diagnose_testbench_round2.json`) | {t2['correct']} | {t2['wrong_names']} | "
+            f"{t2['missed']} | {t2['oov_unexplained_right']} / {t2['oov_logs']} | "
+            f"{t2['null_logs_clean']} / {t2['null_logs']} |") in readme
+    assert (f"{l2['correct']} / {l2['logs']} correct, {l2['wrong_names']} wrong names, {l2['missed']} missed"
+            in " ".join(readme.split()))
     if "testbench" in fams:
         t = s["per_family"]["testbench"]
         assert (f"(testbench family of `diagnose_testbench.json`) | **{t['correct']}** | **{t['wrong_names']}** | "

@@ -151,7 +151,8 @@ class DiagnosisReport:
         data = {"file": self.source, "samples": int(log.n_samples), "joints": [int(j) for j in prep.joints],
                 "duration_s": float(log.duration), "sample_rate_hz": float(log.sample_rate), "robot": self.robot,
                 "skipped_joints": {str(j): r for j, r in prep.skipped.items()},
-                "excluded": {str(j): {k: v for k, v in jd.counts.items() if k not in ("thresholds", "inertia")}
+                "excluded": {str(j): {k: v for k, v in jd.counts.items()
+                                     if k not in ("thresholds", "inertia", "inertia_before_backfit")}
                              for j, jd in prep.joints.items()},
                 "selection": {str(j): jd.counts["thresholds"] for j, jd in prep.joints.items()},
                 "split": (f"whole logs ({int(log.meta.get('n_logs', 0))}): odd-numbered logs (1, 3, ...) train, even-numbered "
@@ -167,6 +168,9 @@ class DiagnosisReport:
             p = Model(prep).coef_slices(res.nominal_fit, j)["nominal"]
             if "inertia" in jd.counts:
                 p["J"] = jd.counts["inertia"]
+            if "inertia_before_backfit" in jd.counts:
+                # J identified before the findings (prepare) and moved by backfit_inertia: closed-loop bias
+                p["J_before_backfit"] = jd.counts["inertia_before_backfit"]
             nom_params[str(j)] = p
         nominal = {"validation": res.nominal_validation,
                    "per_joint": {str(j): m for j, m in res.nominal_validation_joint.items()},
