@@ -242,10 +242,13 @@ def _row(k, family, robot, spec, log, d, dt, not_visible=None):
     return r
 
 
-def _run_family(family, specs, rows):
+def _run_family(family, specs, rows, start=0, refused=None):
+    """Diagnose every spec of one family; rows get k = start + index.  A log that the diagnosis refuses with a
+    one-line DataError (e.g. too few steady samples) is listed in ``refused`` (k, reason), not scored."""
     from drake_est.diagnose import diagnose
+    from drake_est.errors import DataError
     from drake_est.progress import progress
-    for k, spec in enumerate(progress(specs, desc=family)):
+    for k, spec in enumerate(progress(specs, desc=family), start=start):
         nv = None
         if family == "testbench":
             from drake_est.diagnose.testbench import generate
@@ -267,7 +270,14 @@ def _run_family(family, specs, rows):
             robots = ["generic", "irb140"]
         for robot in robots:
             t0 = time.perf_counter()
-            d = diagnose(log, robot=robot, seed=0, simulate=False).to_dict()
+            try:
+                d = diagnose(log, robot=robot, seed=0, simulate=False).to_dict()
+            except DataError as e:
+                if refused is None:
+                    raise
+                refused.append({"k": k, "family": family, "robot": robot, "reason": str(e)})
+                print(f"{family:9s} {robot:7s} {k:3d} refused: {e}", flush=True)
+                continue
             dt = time.perf_counter() - t0
             r = _row(k, family, robot, spec, log, d, dt, nv)
             rows.append(r)
@@ -282,6 +292,9 @@ def main(argv=None):
     ap.add_argument("--n", type=int, default=150, help="logs from the open-loop testbench generator")
     ap.add_argument("--n-loop", type=int, default=100, help="logs from the closed-loop generator")
     ap.add_argument("--n-synth", type=int, default=8, help="synth logs (each diagnosed with generic and irb140)")
+    ap.add_argument("--start", type=int, default=0,
+                    help="first spec index of the testbench and loop families (e.g. --start 150 --n 150: 150 specs "
+                         "never used in development, an out-of-sample check)")
     ap.add_argument("--json", default=None)
     ap.add_argument("--from-json", default=None,
                     help="re-summarize the rows of earlier --json outputs (comma-separated: e.g. one run per family, "
@@ -299,14 +312,18 @@ def main(argv=None):
     for f in fams:
         if f not in FAMILY_ORDER:
             raise SystemExit(f"--family: unknown family '{f}' (choose from {', '.join(FAMILY_ORDER)})")
-    rows = []
+    rows, refused = [], []
     if "testbench" in fams:
-        _run_family("testbench", cases(a.n), rows)
+        _run_family("testbench", cases(a.start + a.n)[a.start:], rows, a.start, refused)
     if "loop" in fams:
-        _run_family("loop", loop_cases(a.n_loop), rows)
+        _run_family("loop", loop_cases(a.start + a.n_loop)[a.start:], rows, a.start, refused)
     if "synth" in fams:
-        _run_family("synth", synth_cases(a.n_synth), rows)
+        _run_family("synth", synth_cases(a.n_synth), rows, 0, refused)
     summary = summarize(rows)
+    summary["refused"] = refused
+    if refused:
+        print(f"{len(refused)} log(s) refused by the diagnosis (not scored): " +
+              "; ".join(f"{r['family']} {r['k']}" for r in refused))
     _print(summary)
     if a.json:
         from drake_est.jsonutil import dump_json

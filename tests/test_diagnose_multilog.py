@@ -177,7 +177,7 @@ def test_stribeck_must_beat_the_periodic_residual(planted, survives):
     fit = model.fit()
     jd = prep.joints[1]
 
-    def fit_inner(C, X=model.design(1), y=jd.y, a=jd.train):
+    def fit_inner(C, X=model.design(1), y=jd.y, a=jd.train, nonneg=False):
         A = np.hstack([X, C])
         c, *_ = np.linalg.lstsq(A[a], y[a], rcond=None)
         e = y[a] - A[a] @ c

@@ -140,6 +140,13 @@ def test_readme_testbench_counts_are_the_measured_ones():
             f"{t2['null_logs_clean']} / {t2['null_logs']} |") in readme
     assert (f"{l2['correct']} / {l2['logs']} correct, {l2['wrong_names']} wrong names, {l2['missed']} missed"
             in " ".join(readme.split()))
+    # the out-of-sample loop specs 100-199, second round's code and this one's
+    for f, label in (("diagnose_testbench_loop_heldout_round2.json", "second round's code (commit 39da320)"),
+                     ("diagnose_testbench_loop_heldout.json", "third round's final code")):
+        h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
+        assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
+                f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
+        assert {r["k"] for r in h["rows"]} <= set(range(100, 200))
     if "testbench" in fams:
         t = s["per_family"]["testbench"]
         assert (f"(testbench family of `diagnose_testbench.json`) | **{t['correct']}** | **{t['wrong_names']}** | "

@@ -83,19 +83,25 @@ def solve_kv_nonneg(solve, A, y, kv_cols=(0,)):
     negative kv it was absorbed instead by whatever correlates with speed (an energy state, a change of the
     speed profile).  Returns (coefficients, set of the columns held at zero)."""
     c = solve(A, y)
-    neg = [i for i in kv_cols if c[i] < 0]
-    if not neg:
-        return c, set()
     keep = np.ones(A.shape[1], bool)
-    keep[neg] = False
-    out = np.zeros(A.shape[1])
-    out[keep] = solve(A[:, keep], y, keep)
-    return out, set(neg)
+    held = set()
+    # the columns whose coefficient comes out negative are held at zero and the rest solved again, until none is
+    # negative (at most one pass per constrained column; the Stribeck basis' coefficients are held the same way)
+    for _ in range(len(kv_cols)):
+        neg = [i for i in kv_cols if keep[i] and c[i] < 0]
+        if not neg:
+            break
+        keep[neg] = False
+        held |= set(neg)
+        c = np.zeros(A.shape[1])
+        c[keep] = solve(A[:, keep], y, keep)
+    return c, held
 
 
-def _lstsq_kv(A, y):
-    """Least squares with kv (column 0, the first nominal column) >= 0: the candidates' inner fits."""
-    return solve_kv_nonneg(lambda A_, y_, keep=None: np.linalg.lstsq(A_, y_, rcond=None)[0], A, y)[0]
+def _lstsq_kv(A, y, nonneg=(0,)):
+    """Least squares with the columns ``nonneg`` >= 0 (kv, column 0, and an accepted Stribeck basis): the
+    candidates' inner fits."""
+    return solve_kv_nonneg(lambda A_, y_, keep=None: np.linalg.lstsq(A_, y_, rcond=None)[0], A, y, nonneg)[0]
 
 
 class Model:
@@ -131,6 +137,17 @@ class Model:
             mask.append(m)
         return np.concatenate(mask)
 
+    def nonneg(self, j) -> list:
+        """Columns of :meth:`design` whose coefficients are kept >= 0: kv (a viscous friction does not fall with
+        speed) and the coefficients of a Stribeck basis in |qd| (a nonnegative mixture of exponentials: a friction
+        excess that falls with speed from standstill, :func:`~drake_est.diagnose.detectors.stribeck`)."""
+        out, k = [0], N_NOMINAL
+        for e in self.own(j):
+            if e.effect == "stribeck" and e.spec.get("basis_speeds"):
+                out += list(range(k, k + e.n_params))
+            k += e.n_params
+        return out
+
     def coef_slices(self, fit, j) -> dict:
         """The coefficients of joint ``j`` in ``fit`` by part: ``{"nominal": {name: value}, effect: array}`` (own
         extensions in the order of :meth:`design`)."""
@@ -155,8 +172,8 @@ class Model:
                 X = self.design(j)
                 pen = self.penalized(j)
                 c, held = solve_kv_nonneg(lambda A, y, keep=None, pen=pen: _ridge_lstsq(
-                    A, y, pen if keep is None else pen[keep]), X[jd.train], jd.y[jd.train])
-                if held:
+                    A, y, pen if keep is None else pen[keep]), X[jd.train], jd.y[jd.train], self.nonneg(j))
+                if 0 in held:
                     kv_held.add(j)
                 coef[j] = c
                 pred[j] = X @ c
@@ -181,9 +198,10 @@ class Model:
             pen = np.ones(P, dtype=bool)
             for k, j in enumerate(js):
                 pen[offs[k]:offs[k + 1]] = self.penalized(j)
+            nn = [int(offs[k]) + i for k, j in enumerate(js) for i in self.nonneg(j)]
             c, held = solve_kv_nonneg(lambda A_, y_, keep=None: _ridge_lstsq(A_, y_, pen if keep is None else pen[keep]),
-                                      A, np.concatenate(rows_y), [int(o) for o in offs[:-1]])
-            kv_held |= {js[list(offs[:-1]).index(i)] for i in held}
+                                      A, np.concatenate(rows_y), nn)
+            kv_held |= {js[list(offs[:-1]).index(i)] for i in held if i in offs[:-1]}
             for k, j in enumerate(js):
                 coef[j] = c[offs[k]:offs[k + 1]]
                 pred[j] = own[j] @ coef[j] + S[k] @ c[offs[-1]:]
@@ -243,15 +261,18 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
         inner_va = jd.train & (block % 4 == 2)
         y = jd.y
 
-        def fit_inner(C, X=X, y=y, a=inner_tr, b=inner_va):
+        nn = model.nonneg(j)
+
+        def fit_inner(C, X=X, y=y, a=inner_tr, b=inner_va, nn=nn, nonneg=False):
+            """Inner-split error of the model plus columns C (``nonneg``: C's coefficients kept >= 0 too)."""
             A = np.hstack([X, C])
-            c = _lstsq_kv(A[a], y[a])
+            c = _lstsq_kv(A[a], y[a], nn + (list(range(X.shape[1], A.shape[1])) if nonneg else []))
             e = y[b] - A[b] @ c
             return float(e @ e)
 
-        def fit_train(C, X=X, y=y, tr=jd.train):
+        def fit_train(C, X=X, y=y, tr=jd.train, nn=nn):
             A = np.hstack([X, C])
-            c = _lstsq_kv(A[tr], y[tr])
+            c = _lstsq_kv(A[tr], y[tr], nn)
             e = y[tr] - A[tr] @ c
             return float(e @ e), c[X.shape[1]:]
 
@@ -273,8 +294,8 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             F_full = kv * jd.v + kc * np.sign(jd.v)
             out.append(det.energy(jd, r, F_full, fit_train, energy_fn=energy_fn(prep)))
         if not have("abrupt_change"):
-            out.append(det.change_point(jd, r, smooth_alternative=have("energy_dependent_friction"),
-                                        energy_cols=_energy_cols(model, j)))
+            ecols = _energy_cols(model, j)
+            out.append(det.change_point(jd, r, smooth_alternative=ecols is not None, energy_cols=ecols))
         if not have("stribeck"):
             out.append(det.stribeck(jd, r, fit_inner, falling=j in fit.kv_held))
         if not have("time_periodic_disturbance"):
@@ -394,7 +415,7 @@ def _model_solver(model, j):
         m = model.penalized(j)
         pen = np.concatenate([m, np.ones(A.shape[1] - m.size, bool)])
         return solve_kv_nonneg(lambda A_, y_, keep=None: _ridge_lstsq(A_, y_, pen if keep is None else pen[keep]),
-                               A, y)[0]
+                               A, y, model.nonneg(j))[0]
     return solve
 
 
@@ -496,30 +517,78 @@ def backfit_inertia(prep, model, fit) -> dict:
     return out
 
 
-def _search(prep, max_findings, alpha, min_gain):
+def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, changed=None):
+    """One round of candidates on ``model``'s residual: [(ext, test, fit1, model1)], each test with
+    ``significant`` (held-out F-test, gain, score and the quantization guard)."""
+    results = []
+    for ext in _candidates(prep, model, fit, accepted, cache, changed):
+        m1 = Model(prep, model.exts + [ext])
+        f1 = m1.fit(sigma)
+        tst = _test(prep, fit, f1, ext)
+        tst["significant"] = bool(tst["p_value"] < alpha and tst["rmse_reduction"] >= min_gain and tst["score"] > 0)
+        if tst["significant"] and not _above_quantization(prep, fit, f1, ext):
+            tst["significant"] = False
+            tst["below_quantization_step"] = True
+        results.append((ext, tst, f1, m1))
+    return results
+
+
+def finding_to_set_aside(prep, model, sigma, alpha, min_gain):
+    """Each accepted finding must still be the best explanation of its joint's residual when all the *other*
+    findings are in the model (the forward search accepts greedily: a first finding that only stood in for
+    effects found later, e.g. a position load fitted to an asymmetric Coulomb level and a Stribeck hump that
+    repeats at the move ends, is otherwise kept).  For every per-joint finding in turn the round of candidates
+    is run on the model without it: when the finding is no longer significant there (a later finding explains
+    it), or another candidate of its joint that survives the same checks scores more than
+    :data:`AMBIGUITY_MARGIN` above it, it is returned as ``(effect, joint, why)`` (the search is then run
+    again without it); None when every finding holds.  The last finding is not checked: the model without it is
+    the one of the round that accepted it, as the best significant candidate."""
+    for e in list(model.exts)[:-1]:
+        if e.shared:
+            continue
+        others = [x for x in model.exts if x is not e]
+        m0 = Model(prep, others)
+        f0 = m0.fit(sigma)
+        acc = {(x.effect, None if x.shared else x.joint) for x in others}
+        results = [r for r in _round(prep, m0, f0, sigma, acc, alpha, min_gain)
+                   if not r[0].shared and r[0].joint == e.joint]
+        own = [r for r in results if r[0].effect == e.effect]
+        if not own or not own[0][1]["significant"]:
+            return e.effect, e.joint, {"reason": "not significant given the other findings",
+                                       "p_value": own[0][1]["p_value"] if own else None}
+        rivals = [r for r in results if r[0].effect != e.effect and r[1]["significant"]
+                  and r[1]["score"] > own[0][1]["score"] + AMBIGUITY_MARGIN]
+        if rivals:
+            best, _ = _best_surviving(prep, m0, f0, rivals, alpha, min_gain)
+            if best is not None:
+                return e.effect, e.joint, {"reason": f"{best[0].effect} explains the joint's residual better given "
+                                                     "the other findings",
+                                           "better": best[0].effect, "score": float(own[0][1]["score"]),
+                                           "better_score": float(best[1]["score"])}
+    return None
+
+
+#: how often the search is run again after a finding was set aside (:func:`finding_to_set_aside`)
+MAX_SET_ASIDE = 2
+
+
+def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
+    return _forward(prep, max_findings, alpha, min_gain, blocked)
+
+
+def _forward(prep, max_findings, alpha, min_gain, blocked=frozenset()):
     model = Model(prep)
     fit0 = model.fit()
     sigma = {j: float(np.sqrt(fit0.rss_val[j] / max(prep.joints[j].val.sum(), 1))) for j in prep.joints}
     nominal_val = _val_metrics(prep, fit0)
     nominal_joint = {j: _val_metrics(prep, fit0, [j]) for j in prep.joints}
-    accepted = set()
+    accepted = set(blocked)        # closed for their joint (set aside, see _search)
     steps = []
     rejected = []
     fit = fit0
     cache, changed = {}, None
     for _ in range(max_findings):
-        cands = _candidates(prep, model, fit, accepted, cache, changed)
-        results = []
-        for ext in cands:
-            m1 = Model(prep, model.exts + [ext])
-            f1 = m1.fit(sigma)
-            tst = _test(prep, fit, f1, ext)
-            tst["significant"] = bool(tst["p_value"] < alpha and tst["rmse_reduction"] >= min_gain
-                                      and tst["score"] > 0)
-            if tst["significant"] and not _above_quantization(prep, fit, f1, ext):
-                tst["significant"] = False
-                tst["below_quantization_step"] = True
-            results.append((ext, tst, f1, m1))
+        results = _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache, changed)
         sig = [r for r in results if r[1]["significant"]]
         best, explained_away = _best_surviving(prep, model, fit, sig, alpha, min_gain)
         if best is None:
@@ -591,6 +660,22 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         if not new:
             break
         prep.meta.pop("payload_ext", None)
+    # every finding against the others (the forward search is greedy): a finding set aside is closed for its
+    # joint and the search run again, at most MAX_SET_ASIDE times
+    blocked, set_aside = set(), []
+    for _ in range(MAX_SET_ASIDE):
+        model, sigma = out[5], out[7]
+        if not [e for e in model.exts if not e.shared]:
+            break
+        bad = finding_to_set_aside(prep, model, sigma, alpha, min_gain)
+        if bad is None:
+            break
+        effect, joint, why = bad
+        blocked.add((effect, joint))
+        set_aside.append({"effect": effect, "joint": int(joint), **why})
+        prep.meta.pop("payload_ext", None)
+        out = _search(prep, max_findings, alpha, min_gain, blocked)
+    prep.meta["set_aside"] = set_aside
     fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma = out
     from drake_est.diagnose.unexplained import residual_structure
     fit._model = model

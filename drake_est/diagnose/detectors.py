@@ -507,10 +507,66 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
     if opt.fun < err0:
         vs, delta = float(np.exp(np.clip(opt.x[0], lo_l, hi_l))), float(np.clip(opt.x[1], 0.5, 3.0))
         C = (_sgn(v) * np.exp(-np.abs(v / vs) ** delta))[:, None]
+    err_p = min(float(opt.fun), err0)
+    speed_range = [float(np.min(np.abs(v))), float(np.max(np.abs(v)))]
+    # a rise towards standstill of another shape (e.g. a Lorentzian ks / (1 + (qd/vs)^2), whose tail one
+    # exponential cannot follow, and whose misfit a position load then takes where speed and position go together):
+    # a basis expansion in |qd| (issue 16: "a basis expansion in |qd| when the shape is not Stribeck-like"), kept
+    # when it beats the parametric law on the same inner split
+    basis = None
+    # a heavy tail reaches the faster samples: the basis speeds go to a third of the 95 % speed (where the slowest
+    # exponential has fallen to 5 %; slower ones would be a second Coulomb/viscous pair)
+    top = float(np.quantile(np.abs(v[jd.train]), 0.95)) / 3.0
+    for K in STRIBECK_BASIS_SIZES:
+        sp = np.geomspace(grid[0], max(top, grid[-1]), K)
+        Cb = stribeck_basis_columns(v, sp)
+        e = fit_inner(Cb, nonneg=True)
+        if e < err_p and (basis is None or e < basis[0]):
+            basis = (e, sp, Cb)
+    if basis is not None:
+        _, sp, Cb = basis
+        spec = {"effect": "stribeck", "basis_speeds": [float(x) for x in sp]}
+        ev = {"shape": f"basis of {sp.size} exponentials exp(-|qd|/c_k) in |qd|", "basis_speeds": spec["basis_speeds"],
+              "inner_error_parametric": err_p, "inner_error_basis": float(basis[0]), "speed_range_selected": speed_range}
+        return Extension("stribeck", jd.joint, {jd.joint: Cb}, [f"ks_{k}" for k in range(sp.size)], spec, ev)
     spec = {"effect": "stribeck", "vs": float(vs), "delta": float(delta)}
-    ev = {"stribeck_velocity": float(vs), "shape_exponent": float(delta),
-          "speed_range_selected": [float(np.min(np.abs(v))), float(np.max(np.abs(v)))]}
+    ev = {"stribeck_velocity": float(vs), "shape_exponent": float(delta), "speed_range_selected": speed_range}
     return Extension("stribeck", jd.joint, {jd.joint: C}, ["ks"], spec, ev)
+
+
+#: sizes of the Stribeck basis expansion in |qd| tried against the parametric law (:func:`stribeck`)
+STRIBECK_BASIS_SIZES = (2, 3, 4, 5, 6)
+
+
+def stribeck_basis_columns(v, speeds) -> np.ndarray:
+    """sign(qd) exp(-|qd| / c_k) for the basis speeds c_k: with nonnegative coefficients (kept so in every fit,
+    :meth:`drake_est.diagnose.core.Model.nonneg`) a friction excess that falls with speed from standstill, of any
+    completely monotone shape (falling and convex), as a mixture of exponentials; a misfit that rises with speed
+    somewhere, e.g. of an energy law, is not of this family."""
+    v = np.asarray(v, float)
+    return _sgn(v)[:, None] * np.exp(-np.abs(v)[:, None] / np.asarray(speeds, float)[None, :])
+
+
+def stribeck_ks_vs(spec, coef):
+    """(ks, vs) of a fitted Stribeck extension: the friction excess at standstill and the speed where it has
+    fallen to ks / e (for the parametric law exp(-|qd/vs|^delta) that is its vs; None if it never falls so far
+    within ten times the largest basis speed)."""
+    if not spec.get("basis_speeds"):
+        return float(np.atleast_1d(coef)[0]), float(spec["vs"])
+    vv = np.linspace(0.0, 10.0 * float(max(spec["basis_speeds"])), 4001)
+    g = stribeck_curve(spec, coef, vv)
+    ks = float(g[0])
+    below = np.flatnonzero(np.abs(g) <= abs(ks) / np.e)
+    return ks, (float(vv[below[0]]) if below.size else None)
+
+
+def stribeck_curve(spec, coef, speeds):
+    """The fitted friction excess [torque] at the (nonnegative) ``speeds`` of a Stribeck extension."""
+    speeds = np.abs(np.asarray(speeds, float))
+    coef = np.atleast_1d(np.asarray(coef, float))
+    if spec.get("basis_speeds"):
+        return np.exp(-speeds[:, None] / np.asarray(spec["basis_speeds"], float)[None, :]) @ coef
+    return coef[0] * np.exp(-(speeds / spec["vs"]) ** spec["delta"])
 
 
 #: a line of the motion's own spectrum (qd(t) or |qd|(t)) counts when its amplitude is at least this share of the

@@ -97,7 +97,14 @@ def effect_parameters(result, ext, model, fit) -> dict:
         d = {"t_change_s": ext.spec["t_change"], "kv_before": kv, "kc_before": kc, "kv_after": kv + c[0],
              "kc_after": kc + c[1]}
     elif ext.effect == "stribeck":
-        d = {"kc": kc, "ks": float(c[0]), "vs": ext.spec["vs"], "delta": ext.spec["delta"], "kv": kv}
+        if ext.spec.get("basis_speeds"):
+            # basis expansion in |qd|: ks is the excess at standstill, vs the speed where it has fallen to ks / e
+            from drake_est.diagnose.detectors import stribeck_ks_vs
+            ks, vs = stribeck_ks_vs(ext.spec, c)
+            d = {"kc": kc, "ks": ks, "vs": vs, "delta": None, "shape": "basis expansion in |qd|",
+                 "basis_speeds": list(ext.spec["basis_speeds"]), "basis_coefficients": [float(x) for x in c], "kv": kv}
+        else:
+            d = {"kc": kc, "ks": float(c[0]), "vs": ext.spec["vs"], "delta": ext.spec["delta"], "kv": kv}
     elif ext.effect == "time_periodic_disturbance":
         fr = list(ext.spec["frequencies_hz"])
         n = len(fr)       # columns [cos f1..fn, sin f1..fn] (extensions.columns_at)
@@ -217,6 +224,9 @@ class DiagnosisReport:
                "not_found": sorted([{k: v for k, v in r.items()} for r in res.rejected],
                                    key=lambda r: -r["score"])[:8],
                "logs": per_log_table(prep, res),
+               # findings of an earlier pass that were no longer the best explanation given the others
+               # (core.finding_to_set_aside); the search was run again without them
+               "set_aside": list(prep.meta.get("set_aside", [])),
                "settings": {"alpha": res.timing.get("alpha"), "min_rmse_reduction": res.timing.get("min_gain")},
                "timing_s": {k: v for k, v in res.timing.items() if k.endswith("_s")}}
         if self.simulation is not None:
@@ -263,6 +273,8 @@ class DiagnosisReport:
                 extra = f", {ev['frequency_hz']:.4g} Hz"
             if "stribeck_velocity" in ev:
                 extra = f", vs = {ev['stribeck_velocity']:.3g}"
+            elif f["effect"] == "stribeck" and (f.get("parameters") or {}).get("vs") is not None:
+                extra = f", vs = {f['parameters']['vs']:.3g} (basis expansion in |qd|)"
             if f.get("ambiguous_between"):
                 extra += f"; AMBIGUOUS between {' and '.join(f['ambiguous_between'])}"
             if "time_constant_s" in ev:
@@ -399,6 +411,10 @@ def markdown(d: dict) -> str:
                 L.append(f"- joint {j}: nominal {a:.4g}, extended {b:.4g}")
         if "simulation.png" in files:
             L.append("\n![simulation](simulation.png)")
+    if d.get("set_aside"):
+        L += ["", "## Findings set aside (each finding is checked against the others)", ""]
+        for r in d["set_aside"]:
+            L.append(f"- {r['effect']} (joint {r['joint']}): {r['reason']}; the search was run again without it")
     if d.get("not_found"):
         L += ["", "## Candidates rejected in the last round", ""]
         for r in d["not_found"][:6]:

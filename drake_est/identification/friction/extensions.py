@@ -87,6 +87,8 @@ def columns_at(spec, q, v, t, others=None, E_unit=None, sign=None):
         G = gaussian_features(q, np.asarray(spec["centers"]), spec["width"])
         return np.hstack([np.column_stack([np.sin(q), np.cos(q)]), G]) if spec.get("gravity_harmonic") else G
     if kind == "stribeck":
+        if spec.get("basis_speeds"):          # a basis expansion in |qd| (diagnose.detectors.stribeck)
+            return s[:, None] * np.exp(-np.abs(v)[:, None] / np.asarray(spec["basis_speeds"], float)[None, :])
         return (s * np.exp(-np.abs(v / spec["vs"]) ** spec["delta"]))[:, None]
     if kind == "time_periodic_disturbance":
         w = 2 * np.pi * np.outer(t, np.asarray(spec["frequencies_hz"], float))
@@ -178,7 +180,7 @@ class ExtensionTerm(Term):
 
     def names(self):
         n = {"asymmetric_coulomb": 1, "energy_dependent_friction": 2 if self.spec.get("viscous") else 1,
-             "abrupt_change": 2, "stribeck": 1,
+             "abrupt_change": 2, "stribeck": len(self.spec.get("basis_speeds") or [0]),
              "time_periodic_disturbance": 2 * len(self.spec.get("frequencies_hz", [0]))}.get(self.effect)
         if n is None:
             if self.effect in ("position_dependent_friction", "position_dependent_load"):
