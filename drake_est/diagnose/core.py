@@ -573,16 +573,15 @@ MAX_SET_ASIDE = 2
 
 
 def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
-    return _forward(prep, max_findings, alpha, min_gain, blocked)
-
-
-def _forward(prep, max_findings, alpha, min_gain, blocked=frozenset()):
+    """Forward search: from the nominal model, add the best significant candidate of each round (competitions,
+    change backfit) until none is left.  ``blocked``: (effect, joint) pairs closed from the start (findings set
+    aside by :func:`finding_to_set_aside`)."""
     model = Model(prep)
     fit0 = model.fit()
     sigma = {j: float(np.sqrt(fit0.rss_val[j] / max(prep.joints[j].val.sum(), 1))) for j in prep.joints}
     nominal_val = _val_metrics(prep, fit0)
     nominal_joint = {j: _val_metrics(prep, fit0, [j]) for j in prep.joints}
-    accepted = set(blocked)        # closed for their joint (set aside, see _search)
+    accepted = set(blocked)        # closed for their joint (set aside, see run_diagnosis)
     steps = []
     rejected = []
     fit = fit0
