@@ -10,10 +10,16 @@ import pytest
 needs_data = pytest.mark.requires_data("odrive_cogging/slow2/nocomp_0.npy")  # skip locally, fail under CI=true
 
 
-@needs_data
-def test_crosslog_gain_and_diagnosis():
+@pytest.fixture(scope="module")
+def cogging_quick():
+    """The quick cogging case study, computed once for the tests below (about 18 s)."""
     from drake_est.cases.cogging import cogging_diagnosis_study
-    res = cogging_diagnosis_study(quick=True)
+    return cogging_diagnosis_study(quick=True)
+
+
+@needs_data
+def test_crosslog_gain_and_diagnosis(cogging_quick):
+    res = cogging_quick
     held = res["held_out"]
     assert "slow_goodgains_2/nocomp_0.npy" in held and "slow2_slower/nocomp_0.npy" in held
     # same speed, other session: >= 60 % lower held-out RMSE from the periodic position model
@@ -30,9 +36,8 @@ def test_crosslog_gain_and_diagnosis():
 
 
 @needs_data
-def test_crosslog_diagnosed_gain():
-    from drake_est.cases.cogging import cogging_diagnosis_study
-    res = cogging_diagnosis_study(quick=True)
+def test_crosslog_diagnosed_gain(cogging_quick):
+    res = cogging_quick
     assert res["held_out"]["slow_goodgains_2/nocomp_0.npy"]["reduction_diagnosed"] > 0.3
     # one speed level on the training log: the periodic finding is the position ripple, reported as
     # ambiguous with a disturbance periodic in time (never the time-periodic one alone)
