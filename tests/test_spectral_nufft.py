@@ -170,3 +170,44 @@ def test_spectrum_cli_hardening(tmp_path, capsys, extra, quantize, msg):
         assert rc == 0 and (tmp_path / "o" / "spectrum.png").stat().st_size > 1000
     else:
         assert rc == 2 and msg in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("fit_mean", [False, True])
+@pytest.mark.parametrize("method", ["nufft", "direct"])
+def test_scan_plan_reuses_gram_for_many_signals(data, fit_mean, method):
+    """LSScanPlan: one Gram part, many signals; each scan equals ls_scan of that signal alone."""
+    from drake_est.spectral.lssa import LSScanPlan
+
+    x, y, v = data
+    Phi = _phi(v, 4, True)
+    f = 0.03 + 0.007 * np.arange(800)
+    plan = LSScanPlan(x, f, Phi, method=method, fit_mean=fit_mean)
+    rng = np.random.default_rng(7)
+    for y_k in (y, y - np.cos(2 * np.pi * 3.3 * x), rng.standard_normal(x.size)):
+        ref = ls_scan(x, y_k, f, Phi, method="direct", fit_mean=fit_mean)
+        assert _rel(plan.ess(y_k), ref) < TOL
+    with pytest.raises(DataError, match="signal has 3 samples"):
+        plan.ess(np.ones(3))
+
+
+def test_periodic_components_with_kept_plans_equal_fresh_ones(data):
+    """find_periodic_components(scan_plans=...): the kept plan is reused for another residual at the same
+    positions, a new plan made for other positions, at most MAX_SCAN_PLANS kept; results unchanged."""
+    from drake_est.spectral.detect import MAX_SCAN_PLANS, find_periodic_components
+
+    x, y, v = data
+    plans = {}
+    kw = dict(schedule=v, n_components=2, n_basis=4)
+    a = find_periodic_components(x, y, scan_plans=plans, **kw)
+    assert len(plans) == 1
+    y2 = y + 0.5 * np.sin(2 * np.pi * 7.1 * x)
+    b = find_periodic_components(x, y2, scan_plans=plans, **kw)
+    assert len(plans) == 1                      # same positions, grid and basis: reused
+    for got, sig in ((a, y), (b, y2)):
+        ref = find_periodic_components(x, sig, **kw)
+        np.testing.assert_allclose(got.freqs, ref.freqs, rtol=1e-9)
+        np.testing.assert_allclose(got.explained_fraction, ref.explained_fraction, rtol=1e-7, atol=1e-12)
+    assert abs(b.freqs[0] - 7.1) < 0.01 or abs(b.freqs[1] - 7.1) < 0.01
+    for k in range(MAX_SCAN_PLANS + 1):         # other positions: new plans, the oldest dropped
+        find_periodic_components(x + 0.1 * (k + 1), y, scan_plans=plans, **kw)
+    assert len(plans) == MAX_SCAN_PLANS

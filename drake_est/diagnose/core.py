@@ -104,6 +104,83 @@ def _lstsq_kv(A, y, nonneg=(0,)):
     return solve_kv_nonneg(lambda A_, y_, keep=None: np.linalg.lstsq(A_, y_, rcond=None)[0], A, y, nonneg)[0]
 
 
+#: the normal equations of :class:`InnerFits` are used while the scaled Gram matrix' Cholesky factor has a
+#: diagonal ratio above this (condition number below ~1e10); least squares on the rows otherwise
+GRAM_MIN_DIAG_RATIO = 1e-5
+
+
+class InnerFits:
+    """The candidates' trial fits of ``[X, C]`` for many column blocks ``C`` against one fixed model ``X`` (the
+    detectors' inner-split and training-set errors): least squares by the normal equations, with ``X``'s Gram
+    matrix formed once, so a trial costs O(n k (p + k)) for k candidate columns instead of a factorization of the
+    n x (p + k) rows.  The columns are scaled to unit norm before the Cholesky factorization; when the scaled
+    Gram matrix is too ill-conditioned (:data:`GRAM_MIN_DIAG_RATIO`) the trial falls back to :func:`_lstsq_kv`
+    on the rows, which the normal equations otherwise reproduce to rounding.  The columns ``nonneg`` (kv and an
+    accepted Stribeck basis) are kept >= 0 as in :func:`solve_kv_nonneg`.
+
+    ``fit_rows``: mask of the rows fitted; ``err_rows``: mask of the rows whose error is returned (the fitted
+    ones when None)."""
+
+    def __init__(self, X, y, fit_rows, err_rows=None, nonneg=(0,)):
+        self.fit_rows = fit_rows
+        self.err_rows = err_rows
+        self.Xa, self.ya = X[fit_rows], y[fit_rows]
+        self.Gxx = self.Xa.T @ self.Xa
+        self.gx = self.Xa.T @ self.ya
+        if err_rows is not None:
+            self.Xb, self.yb = X[err_rows], y[err_rows]
+        self.nonneg = tuple(nonneg)
+        self.p = X.shape[1]
+
+    def _solve(self, G, g, Ca):
+        d = np.sqrt(np.diag(G))
+        d[d <= 0] = 1.0
+        Gs = G / d[:, None] / d[None, :]
+        try:
+            L = np.linalg.cholesky(Gs)
+            dl = np.abs(np.diag(L))
+            if dl.min() >= GRAM_MIN_DIAG_RATIO * dl.max():
+                z = scipy.linalg.cho_solve((L, True), g / d)
+                return z / d
+        except np.linalg.LinAlgError:
+            pass
+        return None
+
+    def coef(self, C, nonneg=False):
+        """Coefficients of ``[X, C]`` on the fitted rows (``nonneg``: C's coefficients kept >= 0 too)."""
+        Ca = C[self.fit_rows]
+        p, k = self.p, C.shape[1]
+        G = np.empty((p + k, p + k))
+        G[:p, :p] = self.Gxx
+        G[p:, :p] = Ca.T @ self.Xa
+        G[:p, p:] = G[p:, :p].T
+        G[p:, p:] = Ca.T @ Ca
+        g = np.concatenate([self.gx, Ca.T @ self.ya])
+        nn = self.nonneg + (tuple(range(p, p + k)) if nonneg else ())
+
+        def solve(_A, _y, keep=None):
+            if keep is None:
+                c = self._solve(G, g, Ca)
+            else:
+                c = self._solve(G[np.ix_(keep, keep)], g[keep], Ca)
+            if c is None:
+                A = np.hstack([self.Xa, Ca])
+                A = A if keep is None else A[:, keep]
+                c = np.linalg.lstsq(A, self.ya, rcond=None)[0]
+            return c
+
+        return solve_kv_nonneg(solve, G, g, nn)[0]
+
+    def error(self, C, nonneg=False):
+        """Sum of squared errors of ``[X, C]`` on the error rows."""
+        c = self.coef(C, nonneg)
+        if self.err_rows is None:
+            e = self.ya - self.Xa @ c[:self.p] - C[self.fit_rows] @ c[self.p:]
+        else:
+            e = self.yb - self.Xb @ c[:self.p] - C[self.err_rows] @ c[self.p:]
+        return float(e @ e), c
+
+
 class Model:
     """Nominal model plus accepted extensions, fitted by (weighted, stacked) least squares; the viscous
     coefficients are kept >= 0 (:func:`solve_kv_nonneg`)."""
@@ -263,18 +340,17 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
 
         nn = model.nonneg(j)
 
-        def fit_inner(C, X=X, y=y, a=inner_tr, b=inner_va, nn=nn, nonneg=False):
-            """Inner-split error of the model plus columns C (``nonneg``: C's coefficients kept >= 0 too)."""
-            A = np.hstack([X, C])
-            c = _lstsq_kv(A[a], y[a], nn + (list(range(X.shape[1], A.shape[1])) if nonneg else []))
-            e = y[b] - A[b] @ c
-            return float(e @ e)
+        inner = InnerFits(X, y, inner_tr, inner_va, nn)
+        train = InnerFits(X, y, jd.train, None, nn)
 
-        def fit_train(C, X=X, y=y, tr=jd.train, nn=nn):
-            A = np.hstack([X, C])
-            c = _lstsq_kv(A[tr], y[tr], nn)
-            e = y[tr] - A[tr] @ c
-            return float(e @ e), c[X.shape[1]:]
+        def fit_inner(C, nonneg=False, inner=inner):
+            """Inner-split error of the model plus columns C (``nonneg``: C's coefficients kept >= 0 too)."""
+            return inner.error(C, nonneg)[0]
+
+        def fit_train(C, train=train):
+            """Training error of the model plus columns C and C's coefficients."""
+            err, c = train.error(C)
+            return err, c[train.p:]
 
         def have(effect, j=j):
             return (effect, j) in accepted

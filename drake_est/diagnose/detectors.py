@@ -28,7 +28,8 @@ import numpy as np
 
 from drake_est.effects import EFFECTS, EXTRA_EFFECTS  # noqa: F401
 # the column evaluators are friction terms now (one friction model); re-exported under their old names
-from drake_est.identification.friction.extensions import columns_at, gaussian_features, unit_energy  # noqa: F401
+from drake_est.identification.friction.extensions import (columns_at, gaussian_features,  # noqa: F401
+                                                          stribeck_columns, unit_energy)
 
 RIPPLE_BASIS = 8
 #: asymmetric Coulomb is a candidate only when each direction holds at least this share of the training samples
@@ -176,7 +177,7 @@ def _ripple(jd, r, n_components=2, n_basis=None):
     try:
         pc = find_periodic_components(qt, rt, schedule=vt, n_components=n_components, n_basis=n_basis or RIPPLE_BASIS,
                                       f_min=RIPPLE_MIN_CYCLES / span, base=np.column_stack([_sgn(vt), vt]),
-                                      max_fft=RIPPLE_MAX_FFT)
+                                      max_fft=RIPPLE_MAX_FFT, scan_plans=getattr(jd, "scan_plans", None))
     except DrakeEstError:
         return None
     keep = [i for i in range(pc.n_components) if pc.explained_fraction[i] > 0.01] or [0]
@@ -481,7 +482,7 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
     best = None
     for delta in STRIBECK_DELTAS:
         for vs in grid:
-            C = (_sgn(v) * np.exp(-np.abs(v / vs) ** delta))[:, None]
+            C = stribeck_columns(v, {"vs": vs, "delta": delta}, _sgn)
             if np.mean(np.abs(v[jd.train]) < 2 * vs) < STRIBECK_MIN_LOW:
                 continue
             err = fit_inner(C)
@@ -497,7 +498,7 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
 
     def inner_err(x):
         lv, d = float(np.clip(x[0], lo_l, hi_l)), float(np.clip(x[1], 0.5, 3.0))
-        return fit_inner((_sgn(v) * np.exp(-np.abs(v / np.exp(lv)) ** d))[:, None])
+        return fit_inner(stribeck_columns(v, {"vs": np.exp(lv), "delta": d}, _sgn))
 
     import scipy.optimize
     opt = scipy.optimize.minimize(inner_err, [np.log(vs), delta], method="Nelder-Mead",
@@ -506,7 +507,7 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
                                                                [np.log(vs), delta + 0.25]]})
     if opt.fun < err0:
         vs, delta = float(np.exp(np.clip(opt.x[0], lo_l, hi_l))), float(np.clip(opt.x[1], 0.5, 3.0))
-        C = (_sgn(v) * np.exp(-np.abs(v / vs) ** delta))[:, None]
+        C = stribeck_columns(v, {"vs": vs, "delta": delta}, _sgn)
     err_p = min(float(opt.fun), err0)
     speed_range = [float(np.min(np.abs(v))), float(np.max(np.abs(v)))]
     # a rise towards standstill of another shape (e.g. a Lorentzian ks / (1 + (qd/vs)^2), whose tail one
@@ -519,7 +520,7 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
     top = float(np.quantile(np.abs(v[jd.train]), 0.95)) / 3.0
     for K in STRIBECK_BASIS_SIZES:
         sp = np.geomspace(grid[0], max(top, grid[-1]), K)
-        Cb = stribeck_basis_columns(v, sp)
+        Cb = stribeck_columns(v, {"basis_speeds": sp}, _sgn)
         e = fit_inner(Cb, nonneg=True)
         if e < err_p and (basis is None or e < basis[0]):
             basis = (e, sp, Cb)
@@ -538,15 +539,6 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
 STRIBECK_BASIS_SIZES = (2, 3, 4, 5, 6)
 
 
-def stribeck_basis_columns(v, speeds) -> np.ndarray:
-    """sign(qd) exp(-|qd| / c_k) for the basis speeds c_k: with nonnegative coefficients (kept so in every fit,
-    :meth:`drake_est.diagnose.core.Model.nonneg`) a friction excess that falls with speed from standstill, of any
-    completely monotone shape (falling and convex), as a mixture of exponentials; a misfit that rises with speed
-    somewhere, e.g. of an energy law, is not of this family."""
-    v = np.asarray(v, float)
-    return _sgn(v)[:, None] * np.exp(-np.abs(v)[:, None] / np.asarray(speeds, float)[None, :])
-
-
 def stribeck_ks_vs(spec, coef):
     """(ks, vs) of a fitted Stribeck extension: the friction excess at standstill and the speed where it has
     fallen to ks / e (for the parametric law exp(-|qd/vs|^delta) that is its vs; None if it never falls so far
@@ -562,11 +554,7 @@ def stribeck_ks_vs(spec, coef):
 
 def stribeck_curve(spec, coef, speeds):
     """The fitted friction excess [torque] at the (nonnegative) ``speeds`` of a Stribeck extension."""
-    speeds = np.abs(np.asarray(speeds, float))
-    coef = np.atleast_1d(np.asarray(coef, float))
-    if spec.get("basis_speeds"):
-        return np.exp(-speeds[:, None] / np.asarray(spec["basis_speeds"], float)[None, :]) @ coef
-    return coef[0] * np.exp(-(speeds / spec["vs"]) ** spec["delta"])
+    return stribeck_columns(np.abs(np.asarray(speeds, float)), spec, np.ones_like) @ np.atleast_1d(coef)
 
 
 #: a line of the motion's own spectrum (qd(t) or |qd|(t)) counts when its amplitude is at least this share of the

@@ -63,6 +63,14 @@ class JointData:
     val: np.ndarray = None
     counts: dict = field(default_factory=dict)
     gear_ratio: float | None = None
+    #: the ripple detector's periodogram plans (:func:`drake_est.spectral.detect.find_periodic_components`'s
+    #: ``scan_plans``): reused while the rows are unchanged; not pickled (NUFFT plans)
+    scan_plans: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["scan_plans"] = {}
+        return state
 
     @property
     def y(self) -> np.ndarray:

@@ -97,14 +97,13 @@ def effect_parameters(result, ext, model, fit) -> dict:
         d = {"t_change_s": ext.spec["t_change"], "kv_before": kv, "kc_before": kc, "kv_after": kv + c[0],
              "kc_after": kc + c[1]}
     elif ext.effect == "stribeck":
+        # ks: the excess at standstill; vs: the speed where it has fallen to ks / e (the law's vs, or of the basis)
+        from drake_est.diagnose.detectors import stribeck_ks_vs
+        ks, vs = stribeck_ks_vs(ext.spec, c)
+        d = {"kc": kc, "ks": ks, "vs": vs, "delta": ext.spec.get("delta"), "kv": kv}
         if ext.spec.get("basis_speeds"):
-            # basis expansion in |qd|: ks is the excess at standstill, vs the speed where it has fallen to ks / e
-            from drake_est.diagnose.detectors import stribeck_ks_vs
-            ks, vs = stribeck_ks_vs(ext.spec, c)
-            d = {"kc": kc, "ks": ks, "vs": vs, "delta": None, "shape": "basis expansion in |qd|",
-                 "basis_speeds": list(ext.spec["basis_speeds"]), "basis_coefficients": [float(x) for x in c], "kv": kv}
-        else:
-            d = {"kc": kc, "ks": float(c[0]), "vs": ext.spec["vs"], "delta": ext.spec["delta"], "kv": kv}
+            d.update({"shape": "basis expansion in |qd|", "basis_speeds": list(ext.spec["basis_speeds"]),
+                      "basis_coefficients": [float(x) for x in c]})
     elif ext.effect == "time_periodic_disturbance":
         fr = list(ext.spec["frequencies_hz"])
         n = len(fr)       # columns [cos f1..fn, sin f1..fn] (extensions.columns_at)

@@ -50,6 +50,32 @@ def _gram_solve(b, M0, Mc, Ms, J, jitter=1e-10):
     return np.einsum("oi,oi->o", b, sol)
 
 
+def fft_grid(x, f_max: float | None = None, f_min: float | None = None, oversample: float = 4.0,
+             bins_per_period: int = BINS_PER_PERIOD, max_fft: int | None = None):
+    """The automatic uniform grid of :func:`fft_scan`: ``(freqs, ks, h, M)`` with ``freqs = ks / (M h)``, ``h``
+    the position bin and ``M`` the (FFT-friendly) number of bins."""
+    x = _clean_1d(x, "sample locations")
+    span = 1.0 / frequency_resolution(x)
+    if f_max is None:
+        f_max = sampling_density_limit(x)
+    h = 1.0 / (bins_per_period * f_max)
+    df = 1.0 / (oversample * span)
+    M = int(np.ceil(1.0 / (df * h)))
+    M = max(M, int(np.ceil(span / h)) + 2)
+    max_fft = MAX_FFT if max_fft is None else int(max_fft)
+    if M > max_fft:
+        raise DataError(f"FFT scan up to {f_max:.6g} cycles per unit over a span of {span:.6g} needs {M} bins "
+                        f"(> {max_fft}); lower f_max or oversample")
+    M = scipy.fft.next_fast_len(M, real=True)
+    df = 1.0 / (M * h)
+    k_max = int(np.floor(f_max / df))
+    k_min = max(1, int(np.ceil((f_min if f_min is not None else df) / df)))
+    if k_min > k_max:
+        raise DataError(f"empty scan range: f_min {f_min} above f_max {f_max}")
+    ks = np.arange(k_min, k_max + 1)
+    return ks * df, ks, h, M
+
+
 def fft_scan(x, y, Phi=None, f_max: float | None = None, f_min: float | None = None, oversample: float = 4.0,
              bins_per_period: int = BINS_PER_PERIOD, max_fft: int | None = None, method: str = "nufft"):
     """Least-squares periodogram with LPV regressors on the automatic uniform grid, by (non-uniform) FFTs.
@@ -69,31 +95,13 @@ def fft_scan(x, y, Phi=None, f_max: float | None = None, f_min: float | None = N
     if Phi is None:
         Phi = np.ones((N, 1))
     J = Phi.shape[1]
-    span = 1.0 / frequency_resolution(x)
-    if f_max is None:
-        f_max = sampling_density_limit(x)
-    h = 1.0 / (bins_per_period * f_max)
-    df = 1.0 / (oversample * span)
-    M = int(np.ceil(1.0 / (df * h)))
-    M = max(M, int(np.ceil(span / h)) + 2)
-    max_fft = MAX_FFT if max_fft is None else int(max_fft)
-    if M > max_fft:
-        raise DataError(f"FFT scan up to {f_max:.6g} cycles per unit over a span of {span:.6g} needs {M} bins "
-                        f"(> {max_fft}); lower f_max or oversample")
-    M = scipy.fft.next_fast_len(M, real=True)
-    df = 1.0 / (M * h)
-    x0 = float(np.min(x))
-    idx = np.rint((x - x0) / h).astype(np.int64)
-    k_max = int(np.floor(f_max / df))
-    k_min = max(1, int(np.ceil((f_min if f_min is not None else df) / df)))
-    if k_min > k_max:
-        raise DataError(f"empty scan range: f_min {f_min} above f_max {f_max}")
-    ks = np.arange(k_min, k_max + 1)
-    freqs = ks * df
+    freqs, ks, h, M = fft_grid(x, f_max, f_min, oversample, bins_per_period, max_fft)
     if method == "nufft":
         from drake_est.spectral.lssa import _have_finufft
 
         return freqs, ls_scan(x, y, freqs, Phi, method="nufft" if _have_finufft() else "direct")
+    x0 = float(np.min(x))
+    idx = np.rint((x - x0) / h).astype(np.int64)
     # conj(FFT) gives sum_b W(b) exp(+2 pi i k b / M); the e^{i w x0} factor restores absolute phase
     ph1 = np.exp(2j * np.pi * freqs * x0)
     ph2 = np.exp(4j * np.pi * freqs * x0)
@@ -268,7 +276,8 @@ def default_schedule_basis(schedule, n_basis: int, sign_split=None) -> ScheduleB
 def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_components: int = 3,
                              n_basis: int = 4, sign_split=None, f_max: float | None = None,
                              f_min: float | None = None, oversample: float = 4.0, base=None, lam: float = 1e-8,
-                             max_fft: int = MAX_FFT, refine: bool = True) -> PeriodicComponents:
+                             max_fft: int = MAX_FFT, refine: bool = True,
+                             scan_plans: dict | None = None) -> PeriodicComponents:
     """Dominant periodic components of ``signal`` in ``position`` with amplitude/phase depending on ``schedule``.
 
     Parameters
@@ -286,6 +295,9 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
         on v >= 0 and the rest on v < 0.
     base : (N, b) extra regressors fitted jointly and not counted as periodic (e.g. friction terms).
     lam : tiny ridge (relative to the mean Gram diagonal) for numerical safety.
+    scan_plans : a dict in which the periodogram's signal-independent part (:class:`~drake_est.spectral.lssa.
+        LSScanPlan`) is kept, keyed by a fingerprint of the positions, grid and basis, and reused by later calls
+        at the same positions (the diagnosis scans residual after residual of one joint); None: not kept.
     """
     x = _clean_1d(position, "position")
     y = _clean_1d(signal, "signal")
@@ -341,13 +353,14 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
         if fm > limit * (1 + 1e-9):
             raise DataError(f"f_max = {fm:.6g} is above the sampling-density limit {limit:.6g} of the position "
                             f"(quantization step {0.5 / limit:.3g}); higher frequencies alias")
-        scan = lambda r: fft_scan(x, r, Phi, f_max=fm, f_min=f_min, oversample=oversample,  # noqa: E731
-                                  max_fft=max_fft)
+        grid = fft_grid(x, f_max=fm, f_min=f_min, oversample=oversample, max_fft=max_fft)[0]
         step = res / oversample
     else:
         grid = check_frequency_grid(x, freq_grid)
-        scan = lambda r: (grid, ls_scan(x, r, grid, Phi))  # noqa: E731
         step = float(np.min(np.diff(np.unique(grid)))) if grid.size > 1 else res
+    # the automatic grid is scanned by NUFFT (fft_scan's default), a user grid as ls_scan chooses
+    plan = _scan_plan(x, grid, Phi, scan_plans, "nufft" if freq_grid is None else "auto")
+    scan = lambda r: (grid, plan.ess(r))  # noqa: E731
     found = []
     r = r0
     scan_freqs = scan_power = None
@@ -398,6 +411,34 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
                               base_explained_fraction=float((tss - rss_base) / tss), basis=basis,
                               model=model_sorted, scan_freqs=scan_freqs, scan_power=scan_power,
                               velocity_trend=sel(trend), n_samples=N)
+
+
+#: how many scan plans a ``scan_plans`` dict keeps (the oldest are dropped; each holds (O, 2J, 2J) Gram blocks)
+MAX_SCAN_PLANS = 2
+
+
+def _scan_plan(x, grid, Phi, scan_plans, method="auto"):
+    """An :class:`~drake_est.spectral.lssa.LSScanPlan` for these positions, grid and basis, from ``scan_plans``
+    when one was made for the same (fingerprint of the arrays' bytes)."""
+    import hashlib
+
+    from drake_est.spectral.lssa import LSScanPlan, _have_finufft
+
+    method = method if _have_finufft() else "direct"
+    if scan_plans is None:
+        return LSScanPlan(x, grid, Phi, method=method)
+    h = hashlib.blake2b(digest_size=16)
+    h.update(method.encode())
+    for a in (x, grid, Phi):
+        a = np.ascontiguousarray(a, dtype=float)
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    key = h.hexdigest()
+    if key not in scan_plans:
+        while len(scan_plans) >= MAX_SCAN_PLANS:
+            scan_plans.pop(next(iter(scan_plans)))
+        scan_plans[key] = LSScanPlan(x, grid, Phi, method=method)
+    return scan_plans[key]
 
 
 def _joint_fit(x, y, v, basis, freqs, B, lam):

@@ -132,24 +132,24 @@ def _offset_gram(G, b, N: int, sum_y: float, T: np.ndarray):
     return Ge, be
 
 
-def _scan_system(xs, y, freqs, Phi, fit_mean: bool, sums, one_at_a_time: bool = False, show=None, diag=None):
-    """Per-frequency normal equations (G (O, d, d), b (O, d)) of the LPV periodogram from trigonometric
-    sums ``sums(x, weights (K, N), freqs, harmonic) -> (K, O)`` (:func:`~drake_est.spectral.nufft.trig_sums`
-    or its direct reference); ``xs`` centred locations.  ``one_at_a_time`` builds and transforms one
-    weight vector at a time (memory O(N) for long logs); ``show(total)`` wraps the loop in a progress bar."""
+def _gram_system(xs, freqs, Phi, fit_mean: bool, sums, one_at_a_time: bool = False, show=None, diag=None):
+    """The signal-independent part of the LPV periodogram's per-frequency normal equations: the Gram matrices
+    G (O, 2J, 2J) of ``[phi cos(wx), phi sin(wx)]`` from trigonometric sums ``sums(x, weights (K, N), freqs,
+    harmonic) -> (K, O)`` (:func:`~drake_est.spectral.nufft.trig_sums` or its direct reference); ``xs`` centred
+    locations.  Returns ``(G, T)`` with ``T`` (O, J) the sums ``sum phi_j exp(iwx)`` of the floating offset
+    (None without ``fit_mean``).  ``one_at_a_time`` builds and transforms one weight vector at a time (memory
+    O(N) for long logs); ``show(total)`` wraps the loop in a progress bar; ``diag`` receives what
+    :func:`_ill_conditioned` needs."""
     from drake_est.spectral.nufft import gram_blocks, sym_blocks
 
     N, J = Phi.shape
     iu = np.triu_indices(J)
-    jobs = [(1.0, ("b", j)) for j in range(J)]
+    jobs = [(2.0, ("m", c)) for c in range(iu[0].size)]
     if fit_mean:
-        jobs += [(1.0, ("t", j)) for j in range(J)]
-    jobs += [(2.0, ("m", c)) for c in range(iu[0].size)]
+        jobs = [(1.0, ("t", j)) for j in range(J)] + jobs
 
     def weight(key):
         kind, k = key
-        if kind == "b":
-            return Phi[:, k] * y
         if kind == "t":
             return Phi[:, k]
         return Phi[:, iu[0][k]] * Phi[:, iu[1][k]]
@@ -171,6 +171,8 @@ def _scan_system(xs, y, freqs, Phi, fit_mean: bool, sums, one_at_a_time: bool = 
     else:
         for h in (1.0, 2.0):
             keys = [k for hh, k in jobs if hh == h]
+            if not keys:
+                continue
             W = np.array([weight(k) for k in keys])
             R = sums(xs, W, freqs, h)
             for k, row, w in zip(keys, R, W):
@@ -178,20 +180,112 @@ def _scan_system(xs, y, freqs, Phi, fit_mean: bool, sums, one_at_a_time: bool = 
                 if k[0] == "m":
                     m0[k[1]] = w.sum()
     S2 = np.array([S[("m", c)] for c in range(iu[0].size)])           # (P, O)
+    T = np.array([S[("t", j)] for j in range(J)]).T if fit_mean else None
     if diag is not None:               # what _ill_conditioned needs
         dg = np.flatnonzero(iu[0] == iu[1])
         diag["S2d"], diag["m0d"] = S2[dg], m0[dg]
         if fit_mean:
-            diag["T"] = np.array([S[("t", j)] for j in range(J)])
+            diag["T"] = T.T
             diag["tsum"] = Phi.sum(axis=0)
     M0 = sym_blocks(m0, iu, J)
     G = gram_blocks(M0, sym_blocks(S2.real.T, iu, J), sym_blocks(S2.imag.T, iu, J))
-    bj = np.array([S[("b", j)] for j in range(J)]).T
-    b = np.concatenate([bj.real, bj.imag], axis=1)
+    return G, T
+
+
+def _rhs_system(xs, y, freqs, Phi, sums) -> np.ndarray:
+    """The signal's part of the normal equations: b (O, 2J) = [Re, Im] of ``sum phi_j y exp(iwx)``."""
+    bj = sums(xs, (Phi * y[:, None]).T, freqs, 1.0).T
+    return np.concatenate([bj.real, bj.imag], axis=1)
+
+
+def _scan_system(xs, y, freqs, Phi, fit_mean: bool, sums, one_at_a_time: bool = False, show=None, diag=None):
+    """Per-frequency normal equations (G (O, d, d), b (O, d)) of the LPV periodogram (:func:`_gram_system`
+    and :func:`_rhs_system`; with ``fit_mean`` the offset row and column, ``y`` centred by the caller)."""
+    G, T = _gram_system(xs, freqs, Phi, fit_mean, sums, one_at_a_time, show, diag)
+    b = _rhs_system(xs, y, freqs, Phi, sums)
     if fit_mean:
-        T = np.array([S[("t", j)] for j in range(J)]).T
-        G, b = _offset_gram(G, b, N, float(np.sum(y)), T)
+        G, b = _offset_gram(G, b, Phi.shape[0], float(np.sum(y)), T)
     return G, b
+
+
+class LSScanPlan:
+    """The least-squares periodogram (:func:`ls_scan`) of many signals over the same sample locations ``x``,
+    frequency grid and basis ``Phi``: the Gram matrices of the per-frequency normal equations, which do not
+    depend on the signal, are computed once (J(J+1)/2 transforms, and the ill-conditioned frequencies found,
+    see :func:`ls_scan`); each :meth:`ess` then costs the J transforms of the signal's sums.  The greedy
+    component search (:func:`~drake_est.spectral.detect.find_periodic_components`) and the diagnosis' rounds
+    scan residual after residual at the same positions.  Arguments as :func:`ls_scan`."""
+
+    def __init__(self, x, freqs, Phi=None, chunk: int | None = None, jitter: float = 1e-10, fit_mean: bool = False,
+                 method: str = "auto", eps: float | None = None, nthreads: int | None = None,
+                 exact_cond: float | None = None):
+        from drake_est.spectral.nufft import DEFAULT_EPS, TrigSumPlan, trig_sums_direct
+
+        x = _clean_1d(x, "sample locations")
+        freqs = np.atleast_1d(np.asarray(freqs, dtype=float)).ravel()
+        if not np.all(np.isfinite(freqs)):
+            raise DataError("frequency grid contains NaN/inf")
+        if method not in ("auto", "nufft", "direct"):
+            raise DataError(f"unknown ls_scan method '{method}'; use auto, nufft or direct")
+        N = x.size
+        if Phi is None:
+            Phi = np.ones((N, 1))
+        Phi = np.asarray(Phi, dtype=float)
+        if Phi.ndim != 2 or Phi.shape[0] != N:
+            raise DataError(f"basis Phi must have shape ({N}, J), got {Phi.shape}")
+        if not np.all(np.isfinite(Phi)):
+            raise DataError("basis Phi contains NaN/inf")
+        eps = DEFAULT_EPS if eps is None else float(eps)
+        if method == "auto":
+            method = "direct" if (N * freqs.size <= 2e6 or freqs.size < 8 or not _have_finufft()) else "nufft"
+        self.x, self.freqs, self.Phi = x, freqs, Phi
+        self.jitter, self.fit_mean, self.method = float(jitter), bool(fit_mean), method
+        self.xs = x - 0.5 * (float(np.min(x)) + float(np.max(x)))     # the periodogram is shift invariant
+        chunk_elems = int(4e6 if chunk is None else float(chunk) * N)
+        self._direct = lambda xx, c, f, h: trig_sums_direct(xx, c, f, h, chunk_elems=chunk_elems)  # noqa: E731
+        if method == "direct":
+            self._sums = self._direct
+            self.G, self.T = _gram_system(self.xs, freqs, Phi, self.fit_mean, self._direct)
+            self.bad = np.zeros(0, dtype=int)
+            return
+        plans = {}
+
+        def fast(xx, c, f, h):                    # one prepared NUFFT per harmonic, reused for every weight
+            if h not in plans:
+                base = plans[1.0].phase if (h == 2.0 and 1.0 in plans) else None
+                plans[h] = TrigSumPlan(xx, f, h, eps=eps, nthreads=nthreads, center=False, base_phase=base)
+            return plans[h](c)
+
+        self._sums = fast
+        # the harmonic-1 plan first: the harmonic-2 phase is its square
+        fast(self.xs, np.zeros((0, N)), freqs, 1.0)
+        diag = {}
+        self.G, self.T = _gram_system(self.xs, freqs, Phi, self.fit_mean, fast, one_at_a_time=True,
+                                      show=_progress_if_slow(N, freqs.size), diag=diag)
+        self.bad = _ill_conditioned(diag["S2d"], diag["m0d"], diag.get("T"), diag.get("tsum"),
+                                    1e-10 / eps if exact_cond is None else float(exact_cond))
+        if self.bad.size:
+            Gd, Td = _gram_system(self.xs, freqs[self.bad], Phi, self.fit_mean, self._direct)
+            self.G[self.bad] = Gd
+            if self.fit_mean:
+                self.T[self.bad] = Td
+
+    def ess(self, y) -> np.ndarray:
+        """Explained sum of squares of ``y`` by each grid frequency (see :func:`ls_scan`)."""
+        from drake_est.spectral.nufft import explained_ss
+
+        y = _clean_1d(y, "signal")
+        if y.size != self.x.size:
+            raise DataError(f"signal has {y.size} samples, sample locations {self.x.size}")
+        if self.fit_mean:
+            y = y - np.mean(y)       # with the offset in every model, centring changes no residual
+        b = _rhs_system(self.xs, y, self.freqs, self.Phi, self._sums)
+        if self.bad.size:
+            b[self.bad] = _rhs_system(self.xs, y, self.freqs[self.bad], self.Phi, self._direct)
+        G = self.G
+        if self.fit_mean:
+            G, b = _offset_gram(G, b, self.x.size, float(np.sum(y)), self.T)
+        return explained_ss(G, b, self.jitter)
 
 
 def ls_scan(x, y, freqs, Phi=None, chunk: int | None = None, jitter: float = 1e-10, fit_mean: bool = False,
@@ -216,58 +310,14 @@ def ls_scan(x, y, freqs, Phi=None, chunk: int | None = None, jitter: float = 1e-
     ``N F <= 2e6`` or ``F < 8``, NUFFT otherwise.  With NUFFT, frequencies whose 2J x 2J normal
     equations have condition number above ``exact_cond`` (default ``1e-10 / eps``: near 0 and near a
     regular-sampling Nyquist rate the sine column vanishes and the NUFFT error would be amplified) are
-    recomputed by the direct sums, so the result equals the direct path to a relative ~1e-9."""
-    from drake_est.spectral.nufft import DEFAULT_EPS, TrigSumPlan, explained_ss, trig_sums_direct
-
+    recomputed by the direct sums, so the result equals the direct path to a relative ~1e-9.  Scanning many
+    signals at the same locations: :class:`LSScanPlan`."""
     x = _clean_1d(x, "sample locations")
     y = _clean_1d(y, "signal")
     if y.size != x.size:
         raise DataError(f"signal has {y.size} samples, sample locations {x.size}")
-    freqs = np.atleast_1d(np.asarray(freqs, dtype=float)).ravel()
-    if not np.all(np.isfinite(freqs)):
-        raise DataError("frequency grid contains NaN/inf")
-    if method not in ("auto", "nufft", "direct"):
-        raise DataError(f"unknown ls_scan method '{method}'; use auto, nufft or direct")
-    N = x.size
-    if Phi is None:
-        Phi = np.ones((N, 1))
-    Phi = np.asarray(Phi, dtype=float)
-    if Phi.ndim != 2 or Phi.shape[0] != N:
-        raise DataError(f"basis Phi must have shape ({N}, J), got {Phi.shape}")
-    if not np.all(np.isfinite(Phi)):
-        raise DataError("basis Phi contains NaN/inf")
-    eps = DEFAULT_EPS if eps is None else float(eps)
-    if method == "auto":
-        method = "direct" if (N * freqs.size <= 2e6 or freqs.size < 8 or not _have_finufft()) else "nufft"
-    xs = x - 0.5 * (float(np.min(x)) + float(np.max(x)))     # the periodogram is shift invariant
-    chunk_elems = 4e6 if chunk is None else float(chunk) * N
-
-    def direct(xx, c, f, h):
-        return trig_sums_direct(xx, c, f, h, chunk_elems=int(chunk_elems))
-
-    if fit_mean:
-        y = y - np.mean(y)       # with the offset in every model, centring changes no residual
-    if method == "direct":
-        G, b = _scan_system(xs, y, freqs, Phi, fit_mean, direct)
-        return explained_ss(G, b, jitter)
-
-    plans = {}
-
-    def fast(xx, c, f, h):                    # one prepared NUFFT per harmonic, reused for every weight
-        if h not in plans:
-            base = plans[1.0].phase if (h == 2.0 and 1.0 in plans) else None
-            plans[h] = TrigSumPlan(xx, f, h, eps=eps, nthreads=nthreads, center=False, base_phase=base)
-        return plans[h](c)
-
-    diag = {}
-    G, b = _scan_system(xs, y, freqs, Phi, fit_mean, fast, one_at_a_time=True,
-                        show=_progress_if_slow(N, freqs.size), diag=diag)
-    bad = _ill_conditioned(diag["S2d"], diag["m0d"], diag.get("T"), diag.get("tsum"),
-                           1e-10 / eps if exact_cond is None else float(exact_cond))
-    if bad.size:
-        Gd, bd = _scan_system(xs, y, freqs[bad], Phi, fit_mean, direct)
-        G[bad], b[bad] = Gd, bd
-    return explained_ss(G, b, jitter)
+    return LSScanPlan(x, freqs, Phi, chunk=chunk, jitter=jitter, fit_mean=fit_mean, method=method, eps=eps,
+                      nthreads=nthreads, exact_cond=exact_cond).ess(y)
 
 
 def _ill_conditioned(S2d, m0d, T, tsum, limit: float) -> np.ndarray:

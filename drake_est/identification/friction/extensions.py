@@ -71,6 +71,20 @@ class RippleRegressors:
         return LPVSpectrum._design_rows(Phi, np.cos(arg), np.sin(arg), None)
 
 
+def stribeck_columns(v, spec, sign=np.sign) -> np.ndarray:
+    """The Stribeck term's columns (Sec. 9.1, (9.4)) at velocities ``v``: the parametric law
+    sign(qd) exp(-|qd/vs|^delta) (``spec`` with ``vs``, ``delta``; ks linear), or the basis expansion in |qd|
+    sign(qd) exp(-|qd| / c_k) for the basis speeds c_k (``spec["basis_speeds"]``; with nonnegative coefficients a
+    friction excess that falls with speed from standstill, of any completely monotone shape, as a mixture of
+    exponentials).  ``sign``: the sign function (a smoothed one for integrators; ``np.ones_like`` gives the
+    curve over speeds)."""
+    v = np.atleast_1d(np.asarray(v, float))
+    s = sign(v)
+    if spec.get("basis_speeds") is not None and len(spec["basis_speeds"]):
+        return s[:, None] * np.exp(-np.abs(v)[:, None] / np.asarray(spec["basis_speeds"], float)[None, :])
+    return (s * np.exp(-np.abs(v / spec["vs"]) ** spec["delta"]))[:, None]
+
+
 def columns_at(spec, q, v, t, others=None, E_unit=None, sign=None):
     """Columns of an extension at arbitrary samples (arrays (N,) of the joint; ``others``:
     {joint: velocity (N,)} for gear coupling; ``E_unit``: the unit-gain energy state; ``sign``: the
@@ -87,9 +101,7 @@ def columns_at(spec, q, v, t, others=None, E_unit=None, sign=None):
         G = gaussian_features(q, np.asarray(spec["centers"]), spec["width"])
         return np.hstack([np.column_stack([np.sin(q), np.cos(q)]), G]) if spec.get("gravity_harmonic") else G
     if kind == "stribeck":
-        if spec.get("basis_speeds"):          # a basis expansion in |qd| (diagnose.detectors.stribeck)
-            return s[:, None] * np.exp(-np.abs(v)[:, None] / np.asarray(spec["basis_speeds"], float)[None, :])
-        return (s * np.exp(-np.abs(v / spec["vs"]) ** spec["delta"]))[:, None]
+        return stribeck_columns(v, spec, sgn)
     if kind == "time_periodic_disturbance":
         w = 2 * np.pi * np.outer(t, np.asarray(spec["frequencies_hz"], float))
         return np.hstack([np.cos(w), np.sin(w)])
