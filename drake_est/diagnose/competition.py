@@ -186,3 +186,39 @@ def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuis
     return {"F": float(F), "p_value": p, "rmse_reduction": float(gain), "score": score,
             "nuisance_columns": int(N.shape[1]),
             "significant": bool(p < alpha and gain >= min_gain and score > 0)}
+
+
+#: the held-out blocks of a paired comparison are pooled into at most this many contiguous groups (the
+#: independent units of :func:`paired_block_test`; residuals are correlated over a block or two)
+PAIRED_GROUPS = 20
+
+
+def paired_block_test(prep, fit_a, fit_b, joints) -> dict:
+    """Does ``fit_b`` predict the held-out data of ``joints`` better than ``fit_a`` beyond chance?  Two
+    non-nested models (e.g. the same findings with one of two rival extensions) are compared by their squared
+    errors paired over the held-out time blocks: per group of contiguous validation blocks (at most
+    :data:`PAIRED_GROUPS` per joint, each joint's errors scaled by ``fit_a``'s held-out variance) the difference
+    ``sum e_a^2 - sum e_b^2``; a one-sided t-test of its mean over the groups.  The groups, not the samples, are
+    the independent units: a closed-loop residual is correlated within a move.  Returns ``{"t", "p_value",
+    "groups"}`` (p = 1 when fewer than 3 groups)."""
+    from drake_est.diagnose.nominal import block_index
+
+    diffs = []
+    for j in joints:
+        jd = prep.joints[j]
+        val = jd.val
+        ea = (jd.y - fit_a.pred[j])[val]
+        eb = (jd.y - fit_b.pred[j])[val]
+        s2 = max(float(np.mean(ea ** 2)), 1e-300)
+        blk = block_index(jd.t, jd.rows)[val]
+        ub, inv = np.unique(blk, return_inverse=True)
+        group = (inv * min(PAIRED_GROUPS, ub.size)) // ub.size
+        d = (ea ** 2 - eb ** 2) / s2
+        diffs.append(np.bincount(group, weights=d))
+    d = np.concatenate(diffs) if diffs else np.zeros(0)
+    if d.size < 3:
+        return {"t": 0.0, "p_value": 1.0, "groups": int(d.size)}
+    sd = float(np.std(d, ddof=1))
+    t = float(np.mean(d) / (sd / np.sqrt(d.size))) if sd > 0 else (np.inf if np.mean(d) > 0 else 0.0)
+    p = float(scipy.stats.t.sf(t, d.size - 1)) if np.isfinite(t) else 0.0
+    return {"t": t, "p_value": p, "groups": int(d.size)}

@@ -609,7 +609,7 @@ def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, chang
     return results
 
 
-def finding_to_set_aside(prep, model, sigma, alpha, min_gain):
+def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
     """Each accepted finding must still be the best explanation of its joint's residual when all the *other*
     findings are in the model (the forward search accepts greedily: a first finding that only stood in for
     effects found later, e.g. a position load fitted to an asymmetric Coulomb level and a Stribeck hump that
@@ -618,7 +618,10 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain):
     it), or another candidate of its joint that survives the same checks scores more than
     :data:`AMBIGUITY_MARGIN` above it, it is returned as ``(effect, joint, why)`` (the search is then run
     again without it); None when every finding holds.  The last finding is not checked: the model without it is
-    the one of the round that accepted it, as the best significant candidate."""
+    the one of the round that accepted it, as the best significant candidate.  A rival must also predict the
+    held-out blocks better beyond chance (:func:`~drake_est.diagnose.competition.paired_block_test` at
+    :data:`PAIRED_ALPHA`); when it does not, the finding stays and ``ambiguous[(effect, joint)]`` receives the
+    competition fields that report it as ambiguous between the two."""
     for e in list(model.exts)[:-1]:
         if e.shared:
             continue
@@ -637,11 +640,41 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain):
         if rivals:
             best, _ = _best_surviving(prep, m0, f0, rivals, alpha, min_gain)
             if best is not None:
-                return e.effect, e.joint, {"reason": f"{best[0].effect} explains the joint's residual better given "
-                                                     "the other findings",
-                                           "better": best[0].effect, "score": float(own[0][1]["score"]),
-                                           "better_score": float(best[1]["score"])}
+                paired = comp.paired_block_test(prep, own[0][2], best[2], [e.joint])
+                info = {"better": best[0].effect, "score": float(own[0][1]["score"]),
+                        "better_score": float(best[1]["score"]), "paired_t": paired["t"],
+                        "paired_p_value": paired["p_value"], "paired_groups": paired["groups"]}
+                if paired["p_value"] < PAIRED_ALPHA:
+                    return e.effect, e.joint, {"reason": f"{best[0].effect} explains the joint's residual better "
+                                                         "given the other findings", **info}
+                # the finding beat the rival in its round, the rival scores higher given the later findings, and the
+                # held-out blocks do not separate them: the order decided, not the data.  Reported as ambiguous
+                # between the two; the model keeps the one with fewer parameters (parsimony)
+                if best[0].n_params < e.n_params:
+                    return e.effect, e.joint, {
+                        "reason": f"{best[0].effect} explains the joint's residual as well given the other findings "
+                                  f"(not separated on the held-out blocks, paired p = {paired['p_value']:.2g}) with "
+                                  f"fewer parameters ({best[0].n_params} < {e.n_params})",
+                        "not_separated": True, **info}
+                if ambiguous is not None:
+                    ambiguous[(e.effect, e.joint)] = _not_separated(best[0].effect, e.joint, own[0][1]["score"],
+                                                                    best[1]["score"], paired["p_value"])
     return None
+
+
+def _not_separated(rival, joint, score, rival_score, p_value) -> dict:
+    """Competition fields of a finding that a rival of its joint is not separated from on the held-out blocks
+    (:func:`finding_to_set_aside`): ambiguous between the two."""
+    return {"ambiguous": True, "runner_up": rival, "runner_up_joint": int(joint), "runner_up_score": float(rival_score),
+            "runner_up_significant": True, "margin": float(score - rival_score),
+            "reason": f"{rival} explains the joint's residual as well given the other findings: the held-out blocks "
+                      f"do not separate them (paired p = {p_value:.2g}); the one with fewer parameters is kept",
+            "paired_p_value": float(p_value)}
+
+
+#: a rival must beat a finding at this level in the paired held-out block test (:func:`~drake_est.diagnose.
+#: competition.paired_block_test`) for the finding to be set aside; otherwise the two are reported as ambiguous
+PAIRED_ALPHA = 0.05
 
 
 #: how often the search is run again after a finding was set aside (:func:`finding_to_set_aside`)
@@ -737,12 +770,13 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         prep.meta.pop("payload_ext", None)
     # every finding against the others (the forward search is greedy): a finding set aside is closed for its
     # joint and the search run again, at most MAX_SET_ASIDE times
-    blocked, set_aside = set(), []
+    blocked, set_aside, ambiguous = set(), [], {}
     for _ in range(MAX_SET_ASIDE):
         model, sigma = out[5], out[7]
         if not [e for e in model.exts if not e.shared]:
             break
-        bad = finding_to_set_aside(prep, model, sigma, alpha, min_gain)
+        ambiguous = {}
+        bad = finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous)
         if bad is None:
             break
         effect, joint, why = bad
@@ -750,6 +784,18 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         set_aside.append({"effect": effect, "joint": int(joint), **why})
         prep.meta.pop("payload_ext", None)
         out = _search(prep, max_findings, alpha, min_gain, blocked)
+        ambiguous = {}
+    # findings that a rival is not separated from on the held-out blocks: ambiguous between the two (those of the
+    # final model's check, and the simpler rivals a finding was set aside for)
+    for r in set_aside:
+        if r.get("not_separated"):
+            ambiguous[(r["better"], r["joint"])] = _not_separated(r["effect"], r["joint"], r["better_score"],
+                                                                  r["score"], r["paired_p_value"])
+    for st in out[3]:
+        key = (st.ext.effect, None if st.ext.shared else st.ext.joint)
+        if key in ambiguous and not st.competition.get("ambiguous"):
+            st.competition = {**ambiguous[key], "in_its_round": {
+                k: st.competition.get(k) for k in ("runner_up", "runner_up_score", "margin")}}
     prep.meta["set_aside"] = set_aside
     fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma = out
     from drake_est.diagnose.unexplained import residual_structure
