@@ -5,12 +5,15 @@ forward simulation, no report writing) on logs generated before the clock starts
 
 * ``generic``: ten 450 s, 100 Hz generic-axis logs of :mod:`drake_est.diagnose.testbench` (seeds 0-9,
   cycling through ripple, Stribeck, time-periodic disturbance, energy drift and none);
-* ``irb140``: one 450 s, 100 Hz joint-1 IRB 140 log of :mod:`drake_est.synth` with a motor ripple.
+* ``irb140``: one 450 s, 100 Hz joint-1 IRB 140 log of :mod:`drake_est.synth` with a motor ripple;
+* ``loop`` (``--loop N``, default 10): N 450 s, 100 Hz closed-loop logs of :mod:`drake_est.diagnose.testbench_loop`
+  (seeds 0..N-1, cycling through five pairs of effects: these need several rounds, the set-aside check and
+  the inertia backfit, the slowest diagnoses of the benchmark families).
 
 Wall time and process CPU time (``time.process_time``) are both written: on a machine shared with other
 jobs the CPU time is the meaningful number.  BLAS runs single-threaded inside ``diagnose``.
 
-Usage: python benchmarks/bench_diagnose_speed.py [--n 10] [--json OUT.json]
+Usage: python benchmarks/bench_diagnose_speed.py [--n 10] [--loop 10] [--json OUT.json]
        python benchmarks/bench_diagnose_speed.py --markdown benchmarks/results/diagnose_speed.json  (README table)
 """
 from __future__ import annotations
@@ -23,6 +26,9 @@ import numpy as np
 
 EFFECTS = ("motor_position_ripple", "stribeck", "time_periodic_disturbance", "energy_dependent_friction", None)
 N_SAMPLES = 45000
+LOOP_EFFECTS = (("position_dependent_friction", "time_periodic_disturbance"), ("asymmetric_coulomb", "stribeck"),
+                ("position_dependent_load", "stribeck"), ("abrupt_change", "motor_position_ripple"),
+                ("motor_position_ripple", "stribeck"))
 
 
 def readme_table(out, source="diagnose_speed.json") -> list:
@@ -34,7 +40,10 @@ def readme_table(out, source="diagnose_speed.json") -> list:
             f"{out['generic_total_wall_s']:.1f} s | {out['generic_total_cpu_s']:.1f} s | {out['generic_max_cpu_s']:.1f} s | "
             "10 logs < 60 s, one < 10 s |",
             f"| one IRB 140 synth log, 45,000 samples | {out['irb140_wall_s']:.1f} s | {out['irb140_cpu_s']:.1f} s | "
-            "| < 10 s |"]
+            "| < 10 s |"] + ([
+            f"| {out['n_loop_logs']} closed-loop logs (two effects each), 45,000 samples each | "
+            f"{out['loop_total_wall_s']:.1f} s | {out['loop_total_cpu_s']:.1f} s | {out['loop_max_cpu_s']:.1f} s | "
+            "10 logs < 60 s, one < 10 s |"] if out.get("n_loop_logs") else [])
 
 
 def main(argv=None):
@@ -54,6 +63,7 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--n", type=int, default=10)
+    ap.add_argument("--loop", type=int, default=10, help="closed-loop logs (0: none)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     logs = []
@@ -63,25 +73,38 @@ def main(argv=None):
         logs.append((f"testbench {eff or 'none'} seed {s}", lg, "generic"))
     lg, _ = synthesize("motor_position_ripple", seed=45, duration=451.0, sample_rate=100.0)
     irb = Log(t=lg.t[:N_SAMPLES], q=lg.q[:N_SAMPLES], tau=lg.tau[:N_SAMPLES], joints=lg.joints)
+    from drake_est.diagnose.testbench_loop import generate as loop_generate
+    loop = []
+    for s in range(args.loop):
+        effs = LOOP_EFFECTS[s % len(LOOP_EFFECTS)]
+        lg, _ = loop_generate({e: 1.0 for e in effs}, seed=s, duration=N_SAMPLES / 100.0, sample_rate=100.0)
+        loop.append((f"loop {'+'.join(effs)} seed {s}", lg, "generic"))
     rows = []
-    for name, lg, robot in logs + [("synth irb140 ripple", irb, "irb140")]:
+    for name, lg, robot in logs + [("synth irb140 ripple", irb, "irb140")] + loop:
         w0, c0 = time.perf_counter(), time.process_time()
         rep = diagnose(lg, robot=robot, seed=0, simulate=False)
         wall, cpu = time.perf_counter() - w0, time.process_time() - c0
         rows.append({"log": name, "samples": int(lg.n_samples), "robot": robot, "wall_s": wall, "cpu_s": cpu,
                      "findings": rep.effects})
         print(f"{name:45s} {lg.n_samples} samples: wall {wall:5.1f} s, CPU {cpu:5.1f} s  {rep.effects}", flush=True)
-    gen = [r for r in rows if r["robot"] == "generic"]
+    gen = [r for r in rows if r["robot"] == "generic" and r["log"].startswith("testbench")]
+    lp = [r for r in rows if r["log"].startswith("loop")]
     out = {"rows": rows, "n_generic_logs": len(gen),
            "generic_total_wall_s": float(sum(r["wall_s"] for r in gen)),
            "generic_total_cpu_s": float(sum(r["cpu_s"] for r in gen)),
            "generic_max_cpu_s": float(max(r["cpu_s"] for r in gen)),
-           "irb140_cpu_s": rows[-1]["cpu_s"], "irb140_wall_s": rows[-1]["wall_s"],
+           "irb140_cpu_s": rows[len(gen)]["cpu_s"], "irb140_wall_s": rows[len(gen)]["wall_s"],
+           "n_loop_logs": len(lp),
+           "loop_total_wall_s": float(sum(r["wall_s"] for r in lp)), "loop_total_cpu_s": float(sum(r["cpu_s"] for r in lp)),
+           "loop_max_cpu_s": float(max((r["cpu_s"] for r in lp), default=0.0)),
            "load_average_1min": os.getloadavg()[0], "cpu_count": os.cpu_count()}
     print(f"{len(gen)} generic logs of {N_SAMPLES} samples: total wall {out['generic_total_wall_s']:.1f} s, "
           f"CPU {out['generic_total_cpu_s']:.1f} s (slowest {out['generic_max_cpu_s']:.1f} s CPU); "
           f"IRB 140 log: wall {out['irb140_wall_s']:.1f} s, CPU {out['irb140_cpu_s']:.1f} s; "
           f"load average {out['load_average_1min']:.1f} on {out['cpu_count']} cores")
+    if lp:
+        print(f"{len(lp)} closed-loop logs of {N_SAMPLES} samples: total wall {out['loop_total_wall_s']:.1f} s, "
+              f"CPU {out['loop_total_cpu_s']:.1f} s (slowest {out['loop_max_cpu_s']:.1f} s CPU)")
     if args.json:
         dump_json(out, args.json)
     return out

@@ -595,7 +595,8 @@ def backfit_inertia(prep, model, fit) -> dict:
 
 def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, changed=None):
     """One round of candidates on ``model``'s residual: [(ext, test, fit1, model1)], each test with
-    ``significant`` (held-out F-test, gain, score and the quantization guard)."""
+    ``significant`` (held-out F-test, gain, score, the quantization guard and the paired held-out block test,
+    :func:`~drake_est.diagnose.competition.paired_block_test` at :data:`PAIRED_ALPHA`)."""
     results = []
     for ext in _candidates(prep, model, fit, accepted, cache, changed):
         m1 = Model(prep, model.exts + [ext])
@@ -605,6 +606,15 @@ def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, chang
         if tst["significant"] and not _above_quantization(prep, fit, f1, ext):
             tst["significant"] = False
             tst["below_quantization_step"] = True
+        if tst["significant"]:
+            # the F-test counts every held-out sample as independent; a closed-loop residual is correlated over a
+            # move, and a flexible candidate can fit such structure in-sample without predicting the held-out
+            # blocks any better: the gain must also hold across the held-out blocks (paired test)
+            paired = comp.paired_block_test(prep, fit, f1, list(ext.cols))
+            tst["paired_p_value"] = paired["p_value"]
+            if paired["p_value"] >= PAIRED_ALPHA:
+                tst["significant"] = False
+                tst["not_separated_on_held_out_blocks"] = True
         results.append((ext, tst, f1, m1))
     return results
 
