@@ -142,11 +142,18 @@ def test_readme_testbench_counts_are_the_measured_ones():
             in " ".join(readme.split()))
     # the out-of-sample loop specs 100-199, second round's code and this one's
     for f, label in (("diagnose_testbench_loop_heldout_round2.json", "second round's code (commit 39da320)"),
-                     ("diagnose_testbench_loop_heldout.json", "third round's final code")):
+                     ("diagnose_testbench_loop_heldout_round3.json", "third round's final code"),
+                     ("diagnose_testbench_loop_heldout.json", "fourth round's final code")):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
         assert {r["k"] for r in h["rows"]} <= set(range(100, 200))
+    # the third round's JSON: its testbench row
+    r3 = mod.summarize(json.loads((root / "benchmarks" / "results" / "diagnose_testbench_round3.json").read_text())["rows"])
+    t3 = r3["per_family"]["testbench"]
+    assert (f"(testbench family of `diagnose_testbench_round3.json`) | {t3['correct']} | {t3['wrong_names']} | "
+            f"{t3['missed']} | {t3['oov_unexplained_right']} / {t3['oov_logs']} | "
+            f"{t3['null_logs_clean']} / {t3['null_logs']} |") in readme
     if "testbench" in fams:
         t = s["per_family"]["testbench"]
         assert (f"(testbench family of `diagnose_testbench.json`) | **{t['correct']}** | **{t['wrong_names']}** | "

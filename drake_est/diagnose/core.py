@@ -652,7 +652,7 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
             if best is not None:
                 paired = comp.paired_block_test(prep, own[0][2], best[2], [e.joint])
                 info = {"better": best[0].effect, "score": float(own[0][1]["score"]),
-                        "better_score": float(best[1]["score"]), "paired_t": paired["t"],
+                        "better_score": float(best[1]["score"]), "paired_statistic": paired["statistic"],
                         "paired_p_value": paired["p_value"], "paired_groups": paired["groups"]}
                 if paired["p_value"] < PAIRED_ALPHA:
                     return e.effect, e.joint, {"reason": f"{best[0].effect} explains the joint's residual better "
