@@ -109,7 +109,6 @@ def test_stribeck_of_the_exponential_shape_keeps_the_parametric_law():
     assert e.spec["vs"] == pytest.approx(0.08, rel=0.1) and e.spec["delta"] == pytest.approx(2.0, abs=0.3)
 
 
-@pytest.mark.slow   # ~15 s: a 75,000-sample closed-loop log
 def test_closed_loop_load_standing_in_for_asymmetry_and_stribeck_is_set_aside():
     """Closed-loop generator, spec 121 of the benchmark (asymmetric Coulomb + Stribeck under point-to-point
     moves, never used while the rule was written): the greedy search named a position load first; the report
@@ -166,7 +165,6 @@ def test_paired_block_test_separates_a_real_gain_from_chance():
     assert warm["p_value"] < 1e-4 and warm["groups_better"] >= 18
 
 
-@pytest.mark.slow   # ~8 s: a 30,000-sample closed-loop log
 def test_rival_that_does_not_separate_on_held_out_blocks_makes_the_finding_ambiguous():
     """Closed-loop out-of-sample spec 143 (asymmetric Coulomb + a Gaussian-shaped Stribeck law under
     point-to-point moves): given the Stribeck term a position load scores 135 above the asymmetric level, but the
