@@ -68,7 +68,6 @@ def test_case_study_numbers():
         assert c["min_rmse_reduction_vs_constant"] > 0.15
 
 
-@pytest.mark.slow   # ~40 s; tutorials/84_real_kuka runs diagnose_axes on trajectories A and B by default, with these checks
 @needs_data
 def test_diagnose_per_axis_runs():
     from drake_est.cases.kuka import diagnose_axes
