@@ -143,11 +143,14 @@ def test_readme_testbench_counts_are_the_measured_ones():
     # the out-of-sample loop specs 100-199, second round's code and this one's
     for f, label in (("diagnose_testbench_loop_heldout_round2.json", "second round's code (commit 39da320)"),
                      ("diagnose_testbench_loop_heldout_round3.json", "third round's final code"),
-                     ("diagnose_testbench_loop_heldout.json", "fourth round's final code")):
+                     ("diagnose_testbench_loop_heldout.json", "fourth round's final code"),
+                     ("diagnose_testbench_loop_heldout200_round3.json", "third round's final code (commit 67c6825)"),
+                     ("diagnose_testbench_loop_heldout200.json", "fourth round's final code")):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
-        assert {r["k"] for r in h["rows"]} <= set(range(100, 200))
+        lo = 200 if "heldout200" in f else 100
+        assert {r["k"] for r in h["rows"]} <= set(range(lo, lo + 100))
     # the third round's JSON: its testbench row
     r3 = mod.summarize(json.loads((root / "benchmarks" / "results" / "diagnose_testbench_round3.json").read_text())["rows"])
     t3 = r3["per_family"]["testbench"]
