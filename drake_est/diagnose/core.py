@@ -114,8 +114,8 @@ class InnerFits:
     detectors' inner-split and training-set errors): least squares by the normal equations, with ``X``'s Gram
     matrix formed once, so a trial costs O(n k (p + k)) for k candidate columns instead of a factorization of the
     n x (p + k) rows.  The columns are scaled to unit norm before the Cholesky factorization; when the scaled
-    Gram matrix is too ill-conditioned (:data:`GRAM_MIN_DIAG_RATIO`) the trial falls back to :func:`_lstsq_kv`
-    on the rows, which the normal equations otherwise reproduce to rounding.  The columns ``nonneg`` (kv and an
+    Gram matrix is too ill-conditioned (:data:`GRAM_MIN_DIAG_RATIO`) the trial falls back to least squares on the
+    rows (as :func:`_lstsq_kv`), which the normal equations otherwise reproduce to rounding.  The columns ``nonneg`` (kv and an
     accepted Stribeck basis) are kept >= 0 as in :func:`solve_kv_nonneg`.
 
     ``fit_rows``: mask of the rows fitted; ``err_rows``: mask of the rows whose error is returned (the fitted
@@ -132,7 +132,7 @@ class InnerFits:
         self.nonneg = tuple(nonneg)
         self.p = X.shape[1]
 
-    def _solve(self, G, g, Ca):
+    def _solve(self, G, g):
         d = np.sqrt(np.diag(G))
         d[d <= 0] = 1.0
         Gs = G / d[:, None] / d[None, :]
@@ -160,9 +160,9 @@ class InnerFits:
 
         def solve(_A, _y, keep=None):
             if keep is None:
-                c = self._solve(G, g, Ca)
+                c = self._solve(G, g)
             else:
-                c = self._solve(G[np.ix_(keep, keep)], g[keep], Ca)
+                c = self._solve(G[np.ix_(keep, keep)], g[keep])
             if c is None:
                 A = np.hstack([self.Xa, Ca])
                 A = A if keep is None else A[:, keep]
@@ -785,7 +785,6 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         model, sigma = out[5], out[7]
         if not [e for e in model.exts if not e.shared]:
             break
-        ambiguous = {}
         bad = finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous)
         if bad is None:
             break
@@ -794,7 +793,7 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         set_aside.append({"effect": effect, "joint": int(joint), **why})
         prep.meta.pop("payload_ext", None)
         out = _search(prep, max_findings, alpha, min_gain, blocked)
-        ambiguous = {}
+        ambiguous = {}      # marks of a model that was just replaced
     # findings that a rival is not separated from on the held-out blocks: ambiguous between the two (those of the
     # final model's check, and the simpler rivals a finding was set aside for)
     for r in set_aside:

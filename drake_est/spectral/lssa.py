@@ -198,16 +198,6 @@ def _rhs_system(xs, y, freqs, Phi, sums) -> np.ndarray:
     return np.concatenate([bj.real, bj.imag], axis=1)
 
 
-def _scan_system(xs, y, freqs, Phi, fit_mean: bool, sums, one_at_a_time: bool = False, show=None, diag=None):
-    """Per-frequency normal equations (G (O, d, d), b (O, d)) of the LPV periodogram (:func:`_gram_system`
-    and :func:`_rhs_system`; with ``fit_mean`` the offset row and column, ``y`` centred by the caller)."""
-    G, T = _gram_system(xs, freqs, Phi, fit_mean, sums, one_at_a_time, show, diag)
-    b = _rhs_system(xs, y, freqs, Phi, sums)
-    if fit_mean:
-        G, b = _offset_gram(G, b, Phi.shape[0], float(np.sum(y)), T)
-    return G, b
-
-
 class LSScanPlan:
     """The least-squares periodogram (:func:`ls_scan`) of many signals over the same sample locations ``x``,
     frequency grid and basis ``Phi``: the Gram matrices of the per-frequency normal equations, which do not
@@ -258,7 +248,7 @@ class LSScanPlan:
 
         self._sums = fast
         # the harmonic-1 plan first: the harmonic-2 phase is its square
-        fast(self.xs, np.zeros((0, N)), freqs, 1.0)
+        plans[1.0] = TrigSumPlan(self.xs, freqs, 1.0, eps=eps, nthreads=nthreads, center=False)
         diag = {}
         self.G, self.T = _gram_system(self.xs, freqs, Phi, self.fit_mean, fast, one_at_a_time=True,
                                       show=_progress_if_slow(N, freqs.size), diag=diag)
