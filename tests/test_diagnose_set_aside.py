@@ -167,9 +167,12 @@ def test_paired_block_test_separates_a_real_gain_from_chance():
 
 def test_rival_that_does_not_separate_on_held_out_blocks_makes_the_finding_ambiguous():
     """Closed-loop out-of-sample spec 143 (asymmetric Coulomb + a Gaussian-shaped Stribeck law under
-    point-to-point moves): given the Stribeck term a position load scores 135 above the asymmetric level, but the
-    paired held-out blocks do not separate them (p ~ 0.7): the finding is reported as ambiguous between the two,
-    not replaced by the load (the previous behaviour: a wrong name)."""
+    point-to-point moves).  With the fourth round's Stribeck fit a position load scored 135 above the asymmetric
+    level given the Stribeck term, but the paired held-out blocks did not separate them (p ~ 0.7): the finding was
+    reported as ambiguous between the two, not replaced by the load (the third round's wrong name).  Since the
+    fifth round (ks >= 0, a Stribeck grid beyond the data when the friction falls throughout) the Stribeck term fits
+    well enough that the load no longer scores above the asymmetric level; the asymmetric level is named, and if a
+    rival is reported beside it, it is the load it was not separated from."""
     import sys
     from pathlib import Path
 
@@ -184,6 +187,9 @@ def test_rival_that_does_not_separate_on_held_out_blocks_makes_the_finding_ambig
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert sorted(f["effect"] for f in d["findings"]) == ["asymmetric_coulomb", "stribeck"], d["findings"]
     f = next(f for f in d["findings"] if f["effect"] == "asymmetric_coulomb")
-    assert f["ambiguous_between"] == ["asymmetric_coulomb", "position_dependent_load"]
-    assert f["competition"]["paired_p_value"] > core.PAIRED_ALPHA
+    if f.get("ambiguous_between"):
+        assert f["ambiguous_between"] == ["asymmetric_coulomb", "position_dependent_load"]
+        assert f["competition"]["paired_p_value"] > core.PAIRED_ALPHA
+    else:
+        assert f["competition"]["runner_up"] == "position_dependent_load" and f["competition"]["margin"] > 0
     assert d["set_aside"] == []

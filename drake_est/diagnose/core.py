@@ -216,11 +216,12 @@ class Model:
 
     def nonneg(self, j) -> list:
         """Columns of :meth:`design` whose coefficients are kept >= 0: kv (a viscous friction does not fall with
-        speed) and the coefficients of a Stribeck basis in |qd| (a nonnegative mixture of exponentials: a friction
-        excess that falls with speed from standstill, :func:`~drake_est.diagnose.detectors.stribeck`)."""
+        speed) and the Stribeck coefficients, ks of the law or those of a basis in |qd| (a nonnegative mixture: the
+        Stribeck effect is a friction *excess* that falls with speed from standstill, Sec. 9.1; a negative ks would
+        be friction rising with speed, what a viscous term is for, :func:`~drake_est.diagnose.detectors.stribeck`)."""
         out, k = [0], N_NOMINAL
         for e in self.own(j):
-            if e.effect == "stribeck" and e.spec.get("basis_speeds"):
+            if e.effect == "stribeck":
                 out += list(range(k, k + e.n_params))
             k += e.n_params
         return out
@@ -457,31 +458,51 @@ def _above_quantization(prep, fit0, fit1, ext) -> bool:
 def _competition(ext, tst, results, prep=None) -> dict:
     """The runner-up among the competing explanations of the same residual (other effects on the same
     joint(s), judged on the same held-out data), the margin of the winner's score over it, and whether the
-    evidence separates them (``ambiguous`` when the runner-up is significant and the margin is below
-    :data:`AMBIGUITY_MARGIN`)."""
+    evidence separates them (``ambiguous`` when a significant rival's score is within :data:`AMBIGUITY_MARGIN`,
+    or, on a coarsely quantized torque, a simpler significant rival predicts within one quantization step).
+    ``ambiguous_with``: every rival not separated that way, best first (the runner-up need not be one of them:
+    a simpler rival further behind may predict as well to within the rounding of the torque)."""
     js = set(ext.cols)
     rivals = [(e, t) for e, t, _, _ in results if e is not ext and e.effect != ext.effect and js & set(e.cols)]
     if not rivals:
         return {"runner_up": None, "margin": None, "ambiguous": False}
-    e2, t2 = max(rivals, key=lambda r: r[1]["score"])
+    rivals.sort(key=lambda r: -r[1]["score"])
+    e2, t2 = rivals[0]
     margin = float(tst["score"] - t2["score"])
     out = {"runner_up": e2.effect, "runner_up_joint": int(e2.joint), "runner_up_score": float(t2["score"]),
-           "runner_up_significant": bool(t2["significant"]), "margin": margin,
-           "ambiguous": bool(t2["significant"] and margin < AMBIGUITY_MARGIN)}
-    if prep is not None and t2["significant"] and not out["ambiguous"] and ext.n_params > e2.n_params:
-        # a coarse torque ADC: when the winner has more parameters than the runner-up and their held-out
-        # predictions differ by less than one quantization step, what puts the more flexible one ahead is the
-        # deterministic rounding error, not evidence (a simpler winner stands: parsimony)
-        f1 = next(f for e, _, f, _ in results if e is ext)
-        f2 = next(f for e, t, f, _ in results if e is e2)
-        for j in js & set(e2.cols):
-            step = prep.meta.get("tau_step", {}).get(j) or 0.0
-            jd = prep.joints[j]
-            d = (f1.pred[j] - f2.pred[j])[jd.val]
-            if step > 0 and float(np.sqrt(np.mean(d ** 2))) < step:
-                out["ambiguous"] = True
-                out["separated_below_quantization_step"] = True
+           "runner_up_significant": bool(t2["significant"]), "margin": margin}
+    close, below_step = [], False
+    for e, t in rivals:
+        if not t["significant"]:
+            continue
+        if float(tst["score"] - t["score"]) < AMBIGUITY_MARGIN:
+            close.append(e.effect)
+        elif prep is not None and _within_quantization_step(prep, ext, e, results):
+            close.append(e.effect)
+            below_step = True
+    out["ambiguous"] = bool(close)
+    if close:
+        out["ambiguous_with"] = close
+    if below_step:
+        out["separated_below_quantization_step"] = True
     return out
+
+
+def _within_quantization_step(prep, ext, e2, results) -> bool:
+    """A coarse torque ADC: when the winner ``ext`` has more parameters than the rival ``e2`` and their held-out
+    predictions differ by less than one quantization step, what puts the more flexible one ahead is the
+    deterministic rounding error, not evidence (a simpler rival stands beside it: parsimony)."""
+    if ext.n_params <= e2.n_params:
+        return False
+    f1 = next(f for e, _, f, _ in results if e is ext)
+    f2 = next(f for e, _, f, _ in results if e is e2)
+    for j in set(ext.cols) & set(e2.cols):
+        step = prep.meta.get("tau_step", {}).get(j) or 0.0
+        jd = prep.joints[j]
+        d = (f1.pred[j] - f2.pred[j])[jd.val]
+        if step > 0 and float(np.sqrt(np.mean(d ** 2))) < step:
+            return True
+    return False
 
 
 def _model_solver(model, j):
@@ -497,12 +518,26 @@ def _model_solver(model, j):
 
 def _best_surviving(prep, model, fit, sig, alpha, min_gain):
     """The best significant candidate that is not a smooth speed/time law merely absorbing a periodic
-    residual (:func:`~drake_est.diagnose.competition.survives_periodic`); (None, [...]) when none is left.
-    Also returns the candidates set aside that way, with their partial tests."""
+    residual (:func:`~drake_est.diagnose.competition.survives_periodic`), nor a law in time merely absorbing a
+    misfit of the friction curve (:func:`~drake_est.diagnose.competition.survives_speed_law`); (None, [...]) when
+    none is left.  Also returns the candidates set aside that way, with their partial tests (``explained_by``:
+    ``"periodic_residual"`` or ``"speed_law"``)."""
     sig = sorted(sig, key=lambda r: -r[1]["score"])
-    away, nuisance = [], {}
+    away, nuisance, speed_nuisance = [], {}, {}
     for r in sig:
         ext = r[0]
+        if ext.effect in comp.TIME_LAWS and not ext.shared:
+            if ext.joint not in speed_nuisance:
+                speed_nuisance[ext.joint] = comp.speed_law_nuisance(prep, ext.joint)
+            t = comp.survives_speed_law(prep, model, fit, ext, alpha, min_gain, nuisance=speed_nuisance[ext.joint],
+                                        solve=_model_solver(model, ext.joint)) \
+                if speed_nuisance[ext.joint] is not None else {"significant": True}
+            if not t["significant"]:
+                r[1]["significant"] = False
+                r[1]["explained_by_speed_law"] = True
+                away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "speed_law",
+                             **{k: v for k, v in t.items() if k != "significant"}})
+                continue
         if ext.effect in comp.CONFOUNDABLE and not ext.shared:
             if ext.joint not in nuisance:
                 nuisance[ext.joint] = comp.periodic_nuisance(prep, model, fit, ext.joint)
@@ -511,7 +546,7 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
             if not t["significant"]:
                 r[1]["significant"] = False
                 r[1]["explained_by_periodic_residual"] = True
-                away.append({"effect": ext.effect, "joint": int(ext.joint),
+                away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "periodic_residual",
                              **{k: v for k, v in t.items() if k != "significant"}})
                 continue
         return r, away
@@ -593,6 +628,47 @@ def backfit_inertia(prep, model, fit) -> dict:
     return out
 
 
+#: a law in time may leave the friction torque kc + kv |qd| below zero by at most this many noise standard deviations
+#: (:func:`negative_friction`)
+NEGATIVE_FRICTION_SIGMAS = 2.0
+
+
+def negative_friction(prep, model, fit, ext, sigma) -> dict | None:
+    """A change or drift of friction in time must leave a friction: the Coulomb + viscous torque kc + kv |qd| in
+    the direction of motion stays >= 0 (it dissipates energy) over the speeds of the whole log (the joint after a
+    change is the same joint at every speed, also at those it happened to run only before it), before and after an
+    abrupt change, and over the range of the energy state E of a drift ((9.29): kc + k_e E, kv + k_e,v E).  A
+    fitted change to kv = -16 N m s/rad (say) does not describe a gearbox; it follows a misfit elsewhere in the
+    model, e.g. of a low-speed law on a part of the log with slow moves only.  Returns None when the fitted law dissipates (to within :data:`NEGATIVE_FRICTION_SIGMAS` times the
+    joint's noise level ``sigma[j]``), else where it does not: ``{"where", "speed", "friction_torque"}``."""
+    if ext.effect not in ("abrupt_change", "energy_dependent_friction") or ext.shared:
+        return None
+    j = ext.joint
+    jd = prep.joints[j]
+    cs = model.coef_slices(fit, j)
+    kv, kc = float(cs["nominal"]["kv"]), float(cs["nominal"]["kc"])
+    c = np.asarray(cs[ext.effect], float)
+    v = jd.v[jd.rows]
+    slack = NEGATIVE_FRICTION_SIGMAS * float(sigma.get(j, 0.0))
+    if ext.effect == "abrupt_change":
+        sides = [("before the change", kc, kv), ("after the change", kc + c[1], kv + c[0])]
+    else:
+        E = np.asarray(ext.obj, float)[jd.rows] if ext.obj is not None else None
+        if E is None or E.size == 0:
+            return None
+        kev = c[1] if c.size > 1 else 0.0
+        sides = [(f"at energy state E = {e:.3g}", kc + c[0] * e, kv + kev * e) for e in (float(E.min()), float(E.max()))]
+    av = np.abs(v[v != 0])
+    if av.size == 0:
+        return None
+    for where, kc_s, kv_s in sides:
+        for sp in (float(av.min()), float(av.max())):
+            f = kc_s + kv_s * sp
+            if f < -slack:
+                return {"where": where, "speed": sp, "friction_torque": float(f), "kc": float(kc_s), "kv": float(kv_s)}
+    return None
+
+
 def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, changed=None):
     """One round of candidates on ``model``'s residual: [(ext, test, fit1, model1)], each test with
     ``significant`` (held-out F-test, gain, score, the quantization guard and the paired held-out block test,
@@ -606,6 +682,11 @@ def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, chang
         if tst["significant"] and not _above_quantization(prep, fit, f1, ext):
             tst["significant"] = False
             tst["below_quantization_step"] = True
+        if tst["significant"]:
+            neg = negative_friction(prep, m1, f1, ext, sigma)
+            if neg is not None:
+                tst["significant"] = False
+                tst["negative_friction"] = neg
         if tst["significant"]:
             # the F-test counts every held-out sample as independent; a closed-loop residual is correlated over a
             # move, and a flexible candidate can fit such structure in-sample without predicting the held-out
@@ -718,6 +799,7 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
         competition = _competition(ext, tst, results, prep)
         if periodic is not None:      # one speed level: ripple in position vs in time not identifiable
             competition.update(periodic)
+            competition["ambiguous_with"] = [periodic["runner_up"]]
             accepted.update((e, ext.joint) for e in comp.PERIODIC_PAIR)
         if explained_away:
             competition["explained_by_periodic_residual"] = explained_away

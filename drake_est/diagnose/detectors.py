@@ -459,15 +459,17 @@ STRIBECK_MIN_LOW = 0.05
 
 def stribeck_speeds(v_sel, falling: bool = False):
     """Grid of Stribeck velocities vs over which the selected speeds can identify the term: from half the
-    slowest selected speed to a third of the 95 % speed (log spaced); up to the 95 % speed itself when the
+    slowest selected speed to a third of the 95 % speed (log spaced); up to three times the 95 % speed when the
     friction falls with speed over the whole range (``falling``: the nominal viscous coefficient is held at
-    its bound 0), where the data hold only the hump's falling flank and a viscous term cannot take it."""
+    its bound 0), where the data hold only the hump's falling flank (a Stribeck speed beyond the data: the
+    friction still bends down over them, by (q95 / vs)^2 >= 1/9 of ks for a flat-topped law) and a viscous
+    term cannot take it."""
     av = np.abs(v_sel)
     lo, hi = float(np.quantile(av, 0.02)), float(np.quantile(av, 0.95))
     if not (hi > 0 and lo > 0) or hi / lo < 3.0:
         return np.array([])
-    top = hi if falling else hi / 3.0
-    return np.geomspace(0.5 * lo, top, 18 if falling else 14)
+    top = 3.0 * hi if falling else hi / 3.0
+    return np.geomspace(0.5 * lo, top, 22 if falling else 14)
 
 
 def stribeck(jd, r, fit_inner, falling: bool = False):
@@ -485,7 +487,7 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
             C = stribeck_columns(v, {"vs": vs, "delta": delta}, _sgn)
             if np.mean(np.abs(v[jd.train]) < 2 * vs) < STRIBECK_MIN_LOW:
                 continue
-            err = fit_inner(C)
+            err = fit_inner(C, nonneg=True)      # ks >= 0: a friction excess at standstill (Model.nonneg)
             if best is None or err < best[0]:
                 best = (err, vs, delta, C)
     if best is None:
@@ -498,7 +500,7 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
 
     def inner_err(x):
         lv, d = float(np.clip(x[0], lo_l, hi_l)), float(np.clip(x[1], 0.5, 3.0))
-        return fit_inner(stribeck_columns(v, {"vs": np.exp(lv), "delta": d}, _sgn))
+        return fit_inner(stribeck_columns(v, {"vs": np.exp(lv), "delta": d}, _sgn), nonneg=True)
 
     import scipy.optimize
     opt = scipy.optimize.minimize(inner_err, [np.log(vs), delta], method="Nelder-Mead",
@@ -515,20 +517,29 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
     # a basis expansion in |qd| (issue 16: "a basis expansion in |qd| when the shape is not Stribeck-like"), kept
     # when it beats the parametric law on the same inner split
     basis = None
-    # a heavy tail reaches the faster samples: the basis speeds go to a third of the 95 % speed (where the slowest
-    # exponential has fallen to 5 %; slower ones would be a second Coulomb/viscous pair)
-    top = float(np.quantile(np.abs(v[jd.train]), 0.95)) / 3.0
-    for K in STRIBECK_BASIS_SIZES:
-        sp = np.geomspace(grid[0], max(top, grid[-1]), K)
-        Cb = stribeck_columns(v, {"basis_speeds": sp}, _sgn)
-        e = fit_inner(Cb, nonneg=True)
-        if e < err_p and (basis is None or e < basis[0]):
-            basis = (e, sp, Cb)
+    # a heavy tail reaches the faster samples: the basis speeds go up to where the slowest kernel has fallen to 5 %
+    # at the 95 % speed (a third of it for exp(-|qd|/c), 1/sqrt(3) for exp(-(qd/c)^2); slower ones would be a second
+    # Coulomb/viscous pair).  Two kernels: exponentials (a cusp at standstill) and Gaussians (flat at standstill, whose
+    # nonnegative mixtures hold the Lorentzian ks / (1 + (qd/vs)^2) that exponentials cannot follow near zero)
+    # When the friction falls over the whole selected range (``falling``) the data hold only the hump's flank and
+    # the slowest kernel reaches the 95 % speed itself, as the parametric grid does.
+    q95 = float(np.quantile(np.abs(v[jd.train]), 0.95))
+    tops = (("exp", q95), ("gauss", q95)) if falling else (("exp", q95 / 3.0), ("gauss", q95 / np.sqrt(3.0)))
+    for kernel, top in tops:
+        for K in STRIBECK_BASIS_SIZES:
+            sp = np.geomspace(grid[0], max(top, grid[-1]), K)
+            bspec = {"basis_speeds": sp, "basis_kernel": kernel}
+            Cb = stribeck_columns(v, bspec, _sgn)
+            e = fit_inner(Cb, nonneg=True)
+            if e < err_p and (basis is None or e < basis[0]):
+                basis = (e, sp, Cb, kernel)
     if basis is not None:
-        _, sp, Cb = basis
-        spec = {"effect": "stribeck", "basis_speeds": [float(x) for x in sp]}
-        ev = {"shape": f"basis of {sp.size} exponentials exp(-|qd|/c_k) in |qd|", "basis_speeds": spec["basis_speeds"],
-              "inner_error_parametric": err_p, "inner_error_basis": float(basis[0]), "speed_range_selected": speed_range}
+        _, sp, Cb, kernel = basis
+        spec = {"effect": "stribeck", "basis_speeds": [float(x) for x in sp], "basis_kernel": kernel}
+        shape = "exponentials exp(-|qd|/c_k)" if kernel == "exp" else "Gaussians exp(-(qd/c_k)^2)"
+        ev = {"shape": f"basis of {sp.size} {shape} in |qd|", "basis_speeds": spec["basis_speeds"],
+              "basis_kernel": kernel, "inner_error_parametric": err_p, "inner_error_basis": float(basis[0]),
+              "speed_range_selected": speed_range}
         return Extension("stribeck", jd.joint, {jd.joint: Cb}, [f"ks_{k}" for k in range(sp.size)], spec, ev)
     spec = {"effect": "stribeck", "vs": float(vs), "delta": float(delta)}
     ev = {"stribeck_velocity": float(vs), "shape_exponent": float(delta), "speed_range_selected": speed_range}

@@ -103,6 +103,7 @@ def effect_parameters(result, ext, model, fit) -> dict:
         d = {"kc": kc, "ks": ks, "vs": vs, "delta": ext.spec.get("delta"), "kv": kv}
         if ext.spec.get("basis_speeds"):
             d.update({"shape": "basis expansion in |qd|", "basis_speeds": list(ext.spec["basis_speeds"]),
+                      "basis_kernel": ext.spec.get("basis_kernel", "exp"),
                       "basis_coefficients": [float(x) for x in c]})
     elif ext.effect == "time_periodic_disturbance":
         fr = list(ext.spec["frequencies_hz"])
@@ -202,7 +203,8 @@ class DiagnosisReport:
                  "gain": {"rmse_ratio": nom_rmse / s.validation["rmse"],
                           "rmse_ratio_vs_previous_step": (prev.get(tuple(js), nom_rmse)) / s.validation["rmse"]}}
             if s.competition.get("ambiguous"):
-                f["ambiguous_between"] = [s.ext.effect, s.competition["runner_up"]]
+                f["ambiguous_between"] = [s.ext.effect] + list(s.competition.get("ambiguous_with")
+                                                               or [s.competition["runner_up"]])
             if s.ext.shared:
                 f["joints"] = [int(j) for j in js]
             across = across_logs_evidence(prep, s.ext)
@@ -351,11 +353,16 @@ def markdown(d: dict) -> str:
                    "not tested" if m is None else f"ahead by {-m:.4g} in held-out score")
             L.append(f"Competing explanation: runner-up `{c['runner_up']}` (joint {c['runner_up_joint']}), {how}"
                      + (" -- **ambiguous between "
-                     f"`{f['effect']}` and `{c['runner_up']}`**: the evidence does not separate them." if c.get("ambiguous")
-                     else "."))
+                     + " and ".join(f"`{a}`" for a in (f.get("ambiguous_between") or [f["effect"], c["runner_up"]]))
+                     + "**: the evidence does not separate them." if c.get("ambiguous") else "."))
             if c.get("reason"):
                 L.append(f"Why ambiguous: {c['reason']}.")
             for a in c.get("explained_by_periodic_residual", []):
+                if a.get("explained_by") == "speed_law":
+                    L.append(f"Set aside: `{a['effect']}` (joint {a['joint']}) only absorbed a misfit of the friction "
+                             f"curve (partial held-out F-test given a free friction curve of each direction: "
+                             f"p = {a['p_value']:.3g}).")
+                    continue
                 L.append(f"Set aside: `{a['effect']}` (joint {a['joint']}) only absorbed the periodic residual (partial "
                          f"held-out F-test given the periodic structure: p = {a['p_value']:.3g}).")
         if f.get("across_logs"):

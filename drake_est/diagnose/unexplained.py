@@ -461,8 +461,9 @@ def next_experiments(prep, steps, duration) -> list:
         if c.get("ambiguous"):
             j = int(s.ext.joint)
             jd = prep.joints.get(j)
-            pair = {s.ext.effect, c["runner_up"]}
-            exp = {"reason": f"ambiguous between {s.ext.effect} and {c['runner_up']}", "joint": j}
+            names = [s.ext.effect] + list(c.get("ambiguous_with") or [c["runner_up"]])
+            pair = set(names)
+            exp = {"reason": f"ambiguous between {' and '.join(names)}", "joint": j}
             if pair == {"motor_position_ripple", "time_periodic_disturbance"} and jd is not None:
                 v = float(np.median(np.abs(jd.v[jd.rows])))
                 exp["experiment"] = (f"constant-speed sweeps of joint {j} at two more speeds, about "

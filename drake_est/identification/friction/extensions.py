@@ -76,12 +76,15 @@ def stribeck_columns(v, spec, sign=np.sign) -> np.ndarray:
     sign(qd) exp(-|qd/vs|^delta) (``spec`` with ``vs``, ``delta``; ks linear), or the basis expansion in |qd|
     sign(qd) exp(-|qd| / c_k) for the basis speeds c_k (``spec["basis_speeds"]``; with nonnegative coefficients a
     friction excess that falls with speed from standstill, of any completely monotone shape, as a mixture of
-    exponentials).  ``sign``: the sign function (a smoothed one for integrators; ``np.ones_like`` gives the
+    exponentials), or with ``spec["basis_kernel"] == "gauss"`` the Gaussian kernels sign(qd) exp(-(qd / c_k)^2)
+    (a nonnegative mixture of these is any excess completely monotone in qd^2: flat at standstill, e.g. the
+    Lorentzian ks / (1 + (qd/vs)^2) = int exp(-s) exp(-s (qd/vs)^2) ds, which no mixture of exponentials follows).  ``sign``: the sign function (a smoothed one for integrators; ``np.ones_like`` gives the
     curve over speeds)."""
     v = np.atleast_1d(np.asarray(v, float))
     s = sign(v)
     if spec.get("basis_speeds") is not None and len(spec["basis_speeds"]):
-        return s[:, None] * np.exp(-np.abs(v)[:, None] / np.asarray(spec["basis_speeds"], float)[None, :])
+        x = np.abs(v)[:, None] / np.asarray(spec["basis_speeds"], float)[None, :]
+        return s[:, None] * np.exp(-(x * x if spec.get("basis_kernel") == "gauss" else x))
     return (s * np.exp(-np.abs(v / spec["vs"]) ** spec["delta"]))[:, None]
 
 
