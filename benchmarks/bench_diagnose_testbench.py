@@ -158,6 +158,8 @@ def _counts(rows) -> dict:
             "oov_logs": len(oov), "oov_unexplained_right": sum(r["oov_unexplained"] and not r["wrong"] for r in oov),
             "oov_not_unexplained": sum(not r["oov_unexplained"] for r in rows),
             "null_logs": len(null), "null_logs_clean": sum(r["got"] == "none" for r in null),
+            "logs_with_ambiguous_finding": sum("ambiguous(" in r["got"] for r in rows),
+            "correct_all_named_outright": sum(bool(r["correct"]) and _named_outright(r) for r in rows),
             "not_visible_effects": sum(len(r.get("not_visible", {})) for r in rows),
             "wrong_name_cases": [_case(r) for r in rows if r["wrong"]],
             "missed_cases": [dict(_case(r), missed=r["missed"]) for r in rows if r["missed"]],
@@ -165,6 +167,22 @@ def _counts(rows) -> dict:
             "median_seconds_per_log": float(np.median([r["seconds"] for r in rows])) if rows else None,
             "confusion": {f"{t} -> {g}": c for (t, g), c in sorted(conf.items())},
             "matrix_markdown": _matrix(conf)}
+
+
+def _named_outright(r) -> bool:
+    """Every planted vocabulary effect of the row is named as a finding of its own, not only inside an
+    ``ambiguous(A|B)`` finding (effects the generator marks not visible are not required)."""
+    truth = r["truth"].split(" (not visible")[0]
+    planted = {e for e in truth.split("+") if e and e != "none"} - set(OOV) - set(LOOP_OOV)
+    plain = {g for g in r["got"].split("+") if not g.startswith("ambiguous(")}
+    return planted <= plain
+
+
+def ambiguity_line(label, s) -> str:
+    """A row of the ambiguity table of the diagnosis docs: logs, correct, correct with every planted effect named
+    outright, logs with an ambiguous finding, wrong names, missed (tests/test_diagnose_testbench.py checks it)."""
+    return (f"| {label} | {s['logs']} | {s['correct']} | {s['correct_all_named_outright']} | "
+            f"{s['logs_with_ambiguous_finding']} | {s['wrong_names']} | {s['missed']} |")
 
 
 def _case(r) -> dict:

@@ -14,7 +14,7 @@ from drake_est.diagnose.nominal import prepare
 from drake_est.identification.friction.extensions import columns_at, stribeck_columns
 
 
-def _square_axis(levels_first, levels_second, law, change=None, n=24000, h=0.01, seed=0, noise=0.02):
+def _square_axis(levels_first, levels_second, law, change=None, n=24000, h=0.01, seed=0, noise=0.02, log=False):
     """A generic axis (J = 0.2) at constant speed levels, back and forth, smoothed ramps: ``levels_first`` during
     the first half of the log, ``levels_second`` during the second; friction 0.5 qd + 2 sign(qd) + sign(qd)
     law(|qd|); ``change``: (t, dkc) a Coulomb step at time t."""
@@ -38,9 +38,9 @@ def _square_axis(levels_first, levels_second, law, change=None, n=24000, h=0.01,
     if change is not None:
         kc[t >= change[0]] += change[1]
     tau = 0.2 * a + 0.5 * v + kc * s + s * law(np.abs(v)) + noise * rng.standard_normal(n)
-    log = from_arrays(t, np.round(q / 1e-6)[:, None] * 1e-6, tau[:, None], joints=[1], meta={"file": "axis"},
+    out = from_arrays(t, np.round(q / 1e-6)[:, None] * 1e-6, tau[:, None], joints=[1], meta={"file": "axis"},
                       derivatives=True)
-    return prepare(log, robot="generic")
+    return out if log else prepare(out, robot="generic")
 
 
 def _round0(prep):
@@ -91,6 +91,14 @@ def test_a_change_in_time_that_only_follows_the_speeds_is_explained_by_the_speed
     ext4 = _candidate(prep3, model3, fit3, "abrupt_change")
     t4 = comp.survives_speed_law(prep3, model3, fit3, ext4, core.ALPHA, core.MIN_GAIN)
     assert t4["significant"] and t4["confounded_with_speed"] and t4["speed_law_given_it"]["p_value"] > core.ALPHA
+    # diagnosed, that step is named ambiguous between the change and a speed law (whichever wins the round by a few
+    # points), and the next experiment repeats the speeds early and late
+    from drake_est.diagnose import diagnose
+    d = diagnose(_square_axis([0.02, 0.04, 0.08], [0.3, 0.6, 1.0], lambda s: 0.0 * s, change=(120.0, -0.6), log=True),
+                 robot="generic", seed=0, simulate=False).to_dict()
+    assert len(d["findings"]) == 1
+    assert set(d["findings"][0]["ambiguous_between"]) == {"abrupt_change", "stribeck"}
+    assert any("repeated early and late" in e.get("experiment", "") for e in d["next_experiment"])
     # a speed law is not a law in time: not tested
     ext3 = _candidate(prep2, model2, fit2, "stribeck")
     assert comp.survives_speed_law(prep2, model2, fit2, ext3, core.ALPHA, core.MIN_GAIN)["skipped"]
@@ -191,3 +199,27 @@ def test_a_finding_can_be_ambiguous_with_several_rivals():
     assert out["ambiguous_with"] == ["abrupt_change"] and out["runner_up"] == "asymmetric_coulomb"
     results[2] = (b, {"score": 80.0, "significant": True}, None, None)
     assert not core._competition(w, results[0][1], results)["ambiguous"]
+
+
+def test_closed_loop_change_confounded_with_speed_is_reported_ambiguous():
+    """Closed-loop spec 50 of the benchmark (an abrupt change of Coulomb and viscous friction, 10 Hz, point-to-point
+    moves): the moves after the change run at other speeds than those before it, and a free friction curve
+    explains the held-out data as well as the change.  The change is named, ambiguous with a speed law, for the
+    confound (not set aside for the curve, which the first version of the speed-law check did, leaving an
+    asymmetric Coulomb level as a wrong name)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_diagnose_testbench import loop_cases
+
+    from drake_est.diagnose import diagnose
+    from drake_est.diagnose.testbench_loop import generate
+    s = loop_cases(51)[50]
+    log, _ = generate(s["effects"], seed=s["seed"], duration=s["duration"], sample_rate=s["sample_rate"],
+                      noise=s["noise"], noise_std=s["noise_std"])
+    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    assert [f["effect"] for f in d["findings"]] == ["abrupt_change"]
+    f = d["findings"][0]
+    assert f["ambiguous_between"] == ["abrupt_change", "stribeck"] and f["competition"]["confounded_with_speed"]
+    assert f["status"] == "ambiguous"

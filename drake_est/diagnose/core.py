@@ -480,6 +480,18 @@ def _competition(ext, tst, results, prep=None) -> dict:
         elif prep is not None and _within_quantization_step(prep, ext, e, results):
             close.append(e.effect)
             below_step = True
+    if prep is not None and t2["significant"] and e2.effect not in close:
+        # the margin counts every held-out sample as independent; the winner must also predict the held-out blocks
+        # better than the runner-up (competition.paired_block_test, as for a set-aside), else the order of two
+        # scores that the blocks do not separate would name the cause
+        f1 = next(f for e, _, f, _ in results if e is ext)
+        f2 = next(f for e, _, f, _ in results if e is e2)
+        paired = comp.paired_block_test(prep, f2, f1, sorted(js & set(e2.cols)))
+        out["paired_p_value"] = paired["p_value"]
+        if paired["p_value"] >= PAIRED_ALPHA:
+            close.insert(0, e2.effect)
+            out["reason"] = (f"{e2.effect} scores {margin:.3g} lower, but the held-out blocks do not separate the two "
+                             f"(paired p = {paired['p_value']:.2g})")
     out["ambiguous"] = bool(close)
     if close:
         out["ambiguous_with"] = close
@@ -532,6 +544,8 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
             t = comp.survives_speed_law(prep, model, fit, ext, alpha, min_gain, nuisance=speed_nuisance[ext.joint],
                                         solve=_model_solver(model, ext.joint)) \
                 if speed_nuisance[ext.joint] is not None else {"significant": True}
+            if t.get("confounded_with_speed"):
+                r[1]["confounded_with_speed"] = t["speed_law_given_it"]
             if not t["significant"]:
                 r[1]["significant"] = False
                 r[1]["explained_by_speed_law"] = True
@@ -803,6 +817,17 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
             accepted.update((e, ext.joint) for e in comp.PERIODIC_PAIR)
         if explained_away:
             competition["explained_by_periodic_residual"] = explained_away
+        if tst.get("confounded_with_speed"):
+            # a law in time that a free friction curve explains as well (and the curve adds nothing to it): the
+            # log cannot tell a change in time from a speed law (competition.survives_speed_law)
+            why = ("time and speed are confounded in this log: a free friction curve of each direction explains the "
+                   "held-out data as well as this law in time (and adds nothing to it, "
+                   f"p = {tst['confounded_with_speed']['p_value']:.2g}), so a speed-dependent friction (stribeck) is "
+                   "not ruled out")
+            was = list(competition.get("ambiguous_with") or []) if competition.get("ambiguous") else []
+            competition.update({"ambiguous": True, "ambiguous_with": was + [e for e in ["stribeck"] if e not in was],
+                                "reason": "; ".join([r for r in [competition.get("reason")] if r] + [why]),
+                                "confounded_with_speed": True})
         model = m1
         fit = f1
         accepted.add((ext.effect, None if ext.shared else ext.joint))

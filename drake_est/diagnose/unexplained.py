@@ -464,7 +464,17 @@ def next_experiments(prep, steps, duration) -> list:
             names = [s.ext.effect] + list(c.get("ambiguous_with") or [c["runner_up"]])
             pair = set(names)
             exp = {"reason": f"ambiguous between {' and '.join(names)}", "joint": j}
-            if pair == {"motor_position_ripple", "time_periodic_disturbance"} and jd is not None:
+            time_vs_speed = c.get("confounded_with_speed") or (
+                "stribeck" in pair and pair & {"abrupt_change", "energy_dependent_friction"})
+            if time_vs_speed and jd is not None:
+                v = np.abs(jd.v[jd.rows])
+                lo, hi = float(np.quantile(v, 0.05)), float(np.quantile(v, 0.95))
+                exp["experiment"] = (f"the same set of speeds of joint {j}, from {lo:.3g} to {hi:.3g} per s in both "
+                                     "directions, repeated early and late in the log (or before and after the "
+                                     "suspected change): a law in time then differs between the repeats, a speed "
+                                     "law does not")
+                exp["speed_range"] = [lo, hi]
+            elif pair == {"motor_position_ripple", "time_periodic_disturbance"} and jd is not None:
                 v = float(np.median(np.abs(jd.v[jd.rows])))
                 exp["experiment"] = (f"constant-speed sweeps of joint {j} at two more speeds, about "
                                      f"{0.4 * v:.3g} and {2.0 * v:.3g} per s, over the same positions: a position "
