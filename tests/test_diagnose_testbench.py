@@ -141,22 +141,38 @@ def test_readme_testbench_counts_are_the_measured_ones():
     assert (f"{l2['correct']} / {l2['logs']} correct, {l2['wrong_names']} wrong names, {l2['missed']} missed"
             in " ".join(readme.split()))
     # the out-of-sample loop specs 100-199, second round's code and this one's
+    import re
     for f, label in (("diagnose_testbench_loop_heldout_round2.json", "second round's code (commit 39da320)"),
                      ("diagnose_testbench_loop_heldout_round3.json", "third round's final code"),
-                     ("diagnose_testbench_loop_heldout.json", "fourth round's final code"),
+                     ("diagnose_testbench_loop_heldout_round4.json", "fourth round's final code"),
+                     ("diagnose_testbench_loop_heldout.json", "fifth round's final code"),
                      ("diagnose_testbench_loop_heldout200_round3.json", "third round's final code (commit 67c6825)"),
-                     ("diagnose_testbench_loop_heldout200.json", "fourth round's final code")):
+                     ("diagnose_testbench_loop_heldout200_round4.json", "fourth round's final code"),
+                     ("diagnose_testbench_loop_heldout200.json", "fifth round's final code"),
+                     ("diagnose_testbench_loop_heldout300_round4.json", "fourth round's final code (commit 206f0e3)"),
+                     ("diagnose_testbench_loop_heldout300_round5_first.json", "fifth round's first code (commit 4c422f1)"),
+                     ("diagnose_testbench_loop_heldout300.json", "fifth round's final code"),
+                     ("diagnose_testbench_loop_heldout400_round4.json", "fourth round's final code (commit 206f0e3)"),
+                     ("diagnose_testbench_loop_heldout400.json", "fifth round's final code")):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
-        lo = 200 if "heldout200" in f else 100
+        assert mod.ambiguity_line(f"`{f}`", h) in readme, f
+        m = re.search(r"heldout(\d+)", f)
+        lo = int(m.group(1)) if m else 100
         assert {r["k"] for r in h["rows"]} <= set(range(lo, lo + 100))
-    # the third round's JSON: its testbench row
-    r3 = mod.summarize(json.loads((root / "benchmarks" / "results" / "diagnose_testbench_round3.json").read_text())["rows"])
-    t3 = r3["per_family"]["testbench"]
-    assert (f"(testbench family of `diagnose_testbench_round3.json`) | {t3['correct']} | {t3['wrong_names']} | "
-            f"{t3['missed']} | {t3['oov_unexplained_right']} / {t3['oov_logs']} | "
-            f"{t3['null_logs_clean']} / {t3['null_logs']} |") in readme
+    # the ambiguity table of the open-loop and closed-loop families, fourth round's JSON and this one
+    for f in ("diagnose_testbench_round4.json", "diagnose_testbench.json"):
+        h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
+        for fam in ("testbench", "loop"):
+            assert mod.ambiguity_line(f"{fam} family of `{f}`", h["per_family"][fam]) in readme, (f, fam)
+    # the third and fourth rounds' JSONs: their testbench rows
+    for f in ("diagnose_testbench_round3.json", "diagnose_testbench_round4.json"):
+        r3 = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
+        t3 = r3["per_family"]["testbench"]
+        assert (f"(testbench family of `{f}`) | {t3['correct']} | {t3['wrong_names']} | "
+                f"{t3['missed']} | {t3['oov_unexplained_right']} / {t3['oov_logs']} | "
+                f"{t3['null_logs_clean']} / {t3['null_logs']} |") in readme
     if "testbench" in fams:
         t = s["per_family"]["testbench"]
         assert (f"(testbench family of `diagnose_testbench.json`) | **{t['correct']}** | **{t['wrong_names']}** | "

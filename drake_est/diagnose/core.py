@@ -767,6 +767,36 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
     return None
 
 
+def _resolve_named_rivals(steps, checked) -> None:
+    """An ambiguity "A or B" that the data resolve as "A and B": when the rival B a finding was not separated from
+    in its round is itself a finding of the same joint in the final model, the finding was accepted given B (B came
+    first) or held in :func:`finding_to_set_aside`'s check given B (B came later; ``checked``: that check ran on the
+    final model), so the held-out data need both.  B is dropped from ``ambiguous_with`` and listed under
+    ``resolved_with``.  A law in time confounded with a free friction curve (``confounded_with_speed``) stays
+    ambiguous: a named Stribeck law is one such curve, not all of them."""
+    named = {(st.ext.effect, None if st.ext.shared else st.ext.joint) for st in steps}
+    for i, st in enumerate(steps):
+        c = st.competition
+        if not c.get("ambiguous") or c.get("confounded_with_speed"):
+            continue
+        if i < len(steps) - 1 and not checked:
+            continue
+        rivals = list(c.get("ambiguous_with") or [c.get("runner_up")])
+        j = None if st.ext.shared else st.ext.joint
+        done = [r for r in rivals if r is not None and r != st.ext.effect and ((r, j) in named or (r, None) in named)]
+        if not done:
+            continue
+        left = [r for r in rivals if r not in done]
+        c = dict(c, resolved_with=done, ambiguous=bool(left))
+        c["reason"] = ((c.get("reason") + "; " if c.get("reason") else "")
+                       + f"{' and '.join(done)} also named: the held-out data need both")
+        if left:
+            c["ambiguous_with"] = left
+        else:
+            c.pop("ambiguous_with", None)
+        st.competition = c
+
+
 def _not_separated(rival, joint, score, rival_score, p_value) -> dict:
     """Competition fields of a finding that a rival of its joint is not separated from on the held-out blocks
     (:func:`finding_to_set_aside`): ambiguous between the two."""
@@ -888,12 +918,15 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
     # every finding against the others (the forward search is greedy): a finding set aside is closed for its
     # joint and the search run again, at most MAX_SET_ASIDE times
     blocked, set_aside, ambiguous = set(), [], {}
+    checked = False     # whether the final model's findings were each checked given the others
     for _ in range(MAX_SET_ASIDE):
         model, sigma = out[5], out[7]
         if not [e for e in model.exts if not e.shared]:
+            checked = True
             break
         bad = finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous)
         if bad is None:
+            checked = True
             break
         effect, joint, why = bad
         blocked.add((effect, joint))
@@ -912,6 +945,7 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         if key in ambiguous and not st.competition.get("ambiguous"):
             st.competition = {**ambiguous[key], "in_its_round": {
                 k: st.competition.get(k) for k in ("runner_up", "runner_up_score", "margin")}}
+    _resolve_named_rivals(out[3], checked)
     prep.meta["set_aside"] = set_aside
     fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma = out
     from drake_est.diagnose.unexplained import residual_structure
