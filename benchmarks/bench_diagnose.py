@@ -83,10 +83,16 @@ def make_log(spec: dict, cache: Path):
             tau[k, c] += rng.choice([-1, 1], k.size) * rng.uniform(15, 30, k.size) * spec["noise_std"]
         n_out = int(k.size)
     plain = Log(t=log.t, q=log.q, tau=tau, joints=log.joints)   # only t, q<j>, tau<j>
-    save_log(plain, path)
+    # written under a private name and renamed: two benchmark runs sharing the cache (e.g. one per core) may make
+    # the same log at once, and a reader must never see a half-written file
+    tmp = path.with_name(f".{key}.{os.getpid()}.csv")
+    save_log(plain, tmp)
+    os.replace(tmp, path)
     small = {k: truth[k] for k in ("effects", "joints", "noise_std", "effect_parameters")}
     small["injected_outliers"] = n_out
-    tpath.write_bytes(pickle.dumps(small))
+    ttmp = tpath.with_name(f".{key}.{os.getpid()}.pkl")
+    ttmp.write_bytes(pickle.dumps(small))
+    os.replace(ttmp, tpath)
     return path, small
 
 
@@ -190,7 +196,9 @@ def timing(cache: Path, out: Path):
     path = cache / "timing_45000.csv"
     if not path.exists():
         log, _ = synthesize("motor_position_ripple", seed=45, duration=451.0, sample_rate=100.0)
-        save_log(Log(t=log.t[:45000], q=log.q[:45000], tau=log.tau[:45000], joints=log.joints), path)
+        tmp = path.with_name(f".timing_45000.{os.getpid()}.csv")
+        save_log(Log(t=log.t[:45000], q=log.q[:45000], tau=log.tau[:45000], joints=log.joints), tmp)
+        os.replace(tmp, path)
     t0 = time.perf_counter()
     log = load_log(path)
     rep = diagnose(log, robot="irb140", seed=0, source=str(path))

