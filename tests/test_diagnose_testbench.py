@@ -153,7 +153,9 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout300_round5_first.json", "fifth round's first code (commit 4c422f1)"),
                      ("diagnose_testbench_loop_heldout300.json", "fifth round's final code"),
                      ("diagnose_testbench_loop_heldout400_round4.json", "fourth round's final code (commit 206f0e3)"),
-                     ("diagnose_testbench_loop_heldout400.json", "fifth round's final code")):
+                     ("diagnose_testbench_loop_heldout400.json", "fifth round's final code"),
+                     ("diagnose_testbench_loop_heldout500_round4.json", "fourth round's final code (commit 206f0e3)"),
+                     ("diagnose_testbench_loop_heldout500.json", "fifth round's final code")):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
