@@ -250,3 +250,22 @@ def test_position_friction_and_a_change_both_named_outright():
     assert not any(f.get("ambiguous_between") for f in d["findings"])
     pf = next(f for f in d["findings"] if f["effect"] == "position_dependent_friction")
     assert pf["competition"]["resolved_with"] == ["abrupt_change"]
+
+
+def test_asymmetric_level_or_load_gets_a_concrete_next_experiment():
+    """A quantized asymmetric-Coulomb log of the testbench (spec 26 of the benchmark) whose finding is ambiguous
+    between the asymmetric level and a position load: the next experiment names the joint, two speeds inside the
+    log's range and the position range the log covered (to be widened), with rests across it."""
+    from drake_est.diagnose import diagnose
+    log, _ = generate({"asymmetric_coulomb": 1.0}, seed=1026, duration=120.0, sample_rate=100.0, speeds=6,
+                      noise="quantized", noise_std=0.023708521244188586)
+    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    amb = [f for f in d["findings"] if f.get("ambiguous_between")]
+    assert amb and {"asymmetric_coulomb", "position_dependent_load"} <= set(amb[0]["ambiguous_between"])
+    exp = next(e for e in d["next_experiment"] if e["reason"].startswith("ambiguous"))
+    assert exp["joint"] == 1 and "rests" in exp["experiment"]
+    lo, hi = exp["speeds"]
+    v = np.abs(np.gradient(log.q[:, 0], log.t))
+    assert 0 < lo < hi <= v.max()
+    qa, qb = exp["position_range_covered"]
+    assert np.isclose(qa, log.q[:, 0].min(), atol=1e-6) and np.isclose(qb, log.q[:, 0].max(), atol=1e-6)

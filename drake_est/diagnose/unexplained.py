@@ -480,6 +480,21 @@ def next_experiments(prep, steps, duration) -> list:
                                      f"{0.4 * v:.3g} and {2.0 * v:.3g} per s, over the same positions: a position "
                                      "ripple keeps its cycles per rad, a time-periodic disturbance its Hz")
                 exp["speeds"] = [0.4 * v, 2.0 * v]
+            elif {"asymmetric_coulomb", "position_dependent_load"} <= pair and jd is not None:
+                # while moving, an asymmetric Coulomb level is a constant torque (given the nominal symmetric level)
+                # and a load that barely varies over the visited range is one too: only the load's shape over a
+                # wider range, or the torque at rest, tells them apart
+                v = np.abs(jd.v[jd.rows])
+                lo, hi = float(np.quantile(v, 0.25)), float(np.quantile(v, 0.75))
+                qa, qb = float(np.min(jd.q)), float(np.max(jd.q))
+                exp["experiment"] = (f"constant-speed passes of joint {j} in both directions at about {lo:.3g} and "
+                                     f"{hi:.3g} per s over the widest position range the axis allows (this log "
+                                     f"covered {qa:.3g} to {qb:.3g}), with rests of a few seconds at 5 positions "
+                                     "across it: a load changes with position and needs its torque at rest too, an "
+                                     "asymmetric Coulomb level is the same offset at every position and only while "
+                                     "moving")
+                exp["speeds"] = [lo, hi]
+                exp["position_range_covered"] = [qa, qb]
             else:
                 exp["experiment"] = (f"a longer log of joint {j} with several constant speeds and both directions "
                                      "over the full position range")
