@@ -83,17 +83,19 @@ def make_log(spec: dict, cache: Path):
             tau[k, c] += rng.choice([-1, 1], k.size) * rng.uniform(15, 30, k.size) * spec["noise_std"]
         n_out = int(k.size)
     plain = Log(t=log.t, q=log.q, tau=tau, joints=log.joints)   # only t, q<j>, tau<j>
-    # written under a private name and renamed: two benchmark runs sharing the cache (e.g. one per core) may make
-    # the same log at once, and a reader must never see a half-written file
-    tmp = path.with_name(f".{key}.{os.getpid()}.csv")
-    save_log(plain, tmp)
-    os.replace(tmp, path)
+    _write_atomic(path, lambda p: save_log(plain, p))
     small = {k: truth[k] for k in ("effects", "joints", "noise_std", "effect_parameters")}
     small["injected_outliers"] = n_out
-    ttmp = tpath.with_name(f".{key}.{os.getpid()}.pkl")
-    ttmp.write_bytes(pickle.dumps(small))
-    os.replace(ttmp, tpath)
+    _write_atomic(tpath, lambda p: p.write_bytes(pickle.dumps(small)))
     return path, small
+
+
+def _write_atomic(path: Path, write) -> None:
+    """``write(p)`` to a private name beside ``path``, then renamed onto it: two benchmark runs sharing the cache
+    (e.g. one per core) may make the same file at once, and a reader must never see a half-written one."""
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}{path.suffix}")
+    write(tmp)
+    os.replace(tmp, path)
 
 
 def judge(cls, truth, rep):
@@ -196,9 +198,8 @@ def timing(cache: Path, out: Path):
     path = cache / "timing_45000.csv"
     if not path.exists():
         log, _ = synthesize("motor_position_ripple", seed=45, duration=451.0, sample_rate=100.0)
-        tmp = path.with_name(f".timing_45000.{os.getpid()}.csv")
-        save_log(Log(t=log.t[:45000], q=log.q[:45000], tau=log.tau[:45000], joints=log.joints), tmp)
-        os.replace(tmp, path)
+        _write_atomic(path, lambda p: save_log(Log(t=log.t[:45000], q=log.q[:45000], tau=log.tau[:45000],
+                                                   joints=log.joints), p))
     t0 = time.perf_counter()
     log = load_log(path)
     rep = diagnose(log, robot="irb140", seed=0, source=str(path))

@@ -30,6 +30,12 @@ from __future__ import annotations
 import numpy as np
 import scipy.stats
 
+
+def ambiguous_rivals(competition) -> list:
+    """The rivals an ambiguous finding is not separated from: ``ambiguous_with`` (best first), else the runner-up."""
+    return list(competition.get("ambiguous_with") or [competition.get("runner_up")])
+
+
 PERIODIC_PAIR = ("motor_position_ripple", "time_periodic_disturbance")
 #: speed levels: the ratio of the 90 % to the 10 % quantile of the mean |qd| over windows of a few periods
 #: (:func:`speed_level_ratio`); below this one speed level only (a ripple of f cycles/rad then sits at f v Hz within +-20 %

@@ -455,6 +455,11 @@ def _above_quantization(prep, fit0, fit1, ext) -> bool:
     return True
 
 
+def _fit_of(results, ext):
+    """The trial fit of candidate ``ext`` in a round's ``results``."""
+    return next(f for e, _, f, _ in results if e is ext)
+
+
 def _competition(ext, tst, results, prep=None) -> dict:
     """The runner-up among the competing explanations of the same residual (other effects on the same
     joint(s), judged on the same held-out data), the margin of the winner's score over it, and whether the
@@ -465,7 +470,7 @@ def _competition(ext, tst, results, prep=None) -> dict:
     js = set(ext.cols)
     rivals = [(e, t) for e, t, _, _ in results if e is not ext and e.effect != ext.effect and js & set(e.cols)]
     if not rivals:
-        return {"runner_up": None, "margin": None, "ambiguous": False}
+        return _speed_confound({"runner_up": None, "margin": None, "ambiguous": False}, tst)
     rivals.sort(key=lambda r: -r[1]["score"])
     e2, t2 = rivals[0]
     margin = float(tst["score"] - t2["score"])
@@ -484,8 +489,7 @@ def _competition(ext, tst, results, prep=None) -> dict:
         # the margin counts every held-out sample as independent; the winner must also predict the held-out blocks
         # better than the runner-up (competition.paired_block_test, as for a set-aside), else the order of two
         # scores that the blocks do not separate would name the cause
-        f1 = next(f for e, _, f, _ in results if e is ext)
-        f2 = next(f for e, _, f, _ in results if e is e2)
+        f1, f2 = _fit_of(results, ext), _fit_of(results, e2)
         paired = comp.paired_block_test(prep, f2, f1, sorted(js & set(e2.cols)))
         out["paired_p_value"] = paired["p_value"]
         if paired["p_value"] >= PAIRED_ALPHA:
@@ -497,6 +501,22 @@ def _competition(ext, tst, results, prep=None) -> dict:
         out["ambiguous_with"] = close
     if below_step:
         out["separated_below_quantization_step"] = True
+    return _speed_confound(out, tst)
+
+
+def _speed_confound(out, tst) -> dict:
+    """A law in time that a free friction curve explains as well (and the curve adds nothing to it,
+    ``tst["confounded_with_speed"]`` from :func:`~drake_est.diagnose.competition.survives_speed_law`): the log cannot
+    tell a change in time from a speed law, so the finding is also ambiguous with ``stribeck``."""
+    if not tst.get("confounded_with_speed"):
+        return out
+    why = ("time and speed are confounded in this log: a free friction curve of each direction explains the "
+           "held-out data as well as this law in time (and adds nothing to it, "
+           f"p = {tst['confounded_with_speed']['p_value']:.2g}), so a speed-dependent friction (stribeck) is "
+           "not ruled out")
+    was = list(out.get("ambiguous_with") or []) if out.get("ambiguous") else []
+    out.update({"ambiguous": True, "ambiguous_with": was + [e for e in ["stribeck"] if e not in was],
+                "reason": "; ".join([r for r in [out.get("reason")] if r] + [why]), "confounded_with_speed": True})
     return out
 
 
@@ -506,8 +526,7 @@ def _within_quantization_step(prep, ext, e2, results) -> bool:
     deterministic rounding error, not evidence (a simpler rival stands beside it: parsimony)."""
     if ext.n_params <= e2.n_params:
         return False
-    f1 = next(f for e, _, f, _ in results if e is ext)
-    f2 = next(f for e, _, f, _ in results if e is e2)
+    f1, f2 = _fit_of(results, ext), _fit_of(results, e2)
     for j in set(ext.cols) & set(e2.cols):
         step = prep.meta.get("tau_step", {}).get(j) or 0.0
         jd = prep.joints[j]
@@ -781,7 +800,7 @@ def _resolve_named_rivals(steps, checked) -> None:
             continue
         if i < len(steps) - 1 and not checked:
             continue
-        rivals = list(c.get("ambiguous_with") or [c.get("runner_up")])
+        rivals = comp.ambiguous_rivals(c)
         j = None if st.ext.shared else st.ext.joint
         done = [r for r in rivals if r is not None and r != st.ext.effect and ((r, j) in named or (r, None) in named)]
         if not done:
@@ -847,17 +866,6 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
             accepted.update((e, ext.joint) for e in comp.PERIODIC_PAIR)
         if explained_away:
             competition["explained_by_periodic_residual"] = explained_away
-        if tst.get("confounded_with_speed"):
-            # a law in time that a free friction curve explains as well (and the curve adds nothing to it): the
-            # log cannot tell a change in time from a speed law (competition.survives_speed_law)
-            why = ("time and speed are confounded in this log: a free friction curve of each direction explains the "
-                   "held-out data as well as this law in time (and adds nothing to it, "
-                   f"p = {tst['confounded_with_speed']['p_value']:.2g}), so a speed-dependent friction (stribeck) is "
-                   "not ruled out")
-            was = list(competition.get("ambiguous_with") or []) if competition.get("ambiguous") else []
-            competition.update({"ambiguous": True, "ambiguous_with": was + [e for e in ["stribeck"] if e not in was],
-                                "reason": "; ".join([r for r in [competition.get("reason")] if r] + [why]),
-                                "confounded_with_speed": True})
         model = m1
         fit = f1
         accepted.add((ext.effect, None if ext.shared else ext.joint))

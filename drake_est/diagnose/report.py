@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_est.diagnose.competition import ambiguous_rivals
 from drake_est.diagnose.nominal import n_blocks_for
 from drake_est.diagnose.multilog import across_logs_evidence, per_log_table
 
@@ -203,8 +204,7 @@ class DiagnosisReport:
                  "gain": {"rmse_ratio": nom_rmse / s.validation["rmse"],
                           "rmse_ratio_vs_previous_step": (prev.get(tuple(js), nom_rmse)) / s.validation["rmse"]}}
             if s.competition.get("ambiguous"):
-                f["ambiguous_between"] = [s.ext.effect] + list(s.competition.get("ambiguous_with")
-                                                               or [s.competition["runner_up"]])
+                f["ambiguous_between"] = [s.ext.effect] + ambiguous_rivals(s.competition)
             if s.ext.shared:
                 f["joints"] = [int(j) for j in js]
             across = across_logs_evidence(prep, s.ext)

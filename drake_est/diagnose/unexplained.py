@@ -453,7 +453,7 @@ def _reversal_entry(j, r, step, alpha, min_share):
 
 def next_experiments(prep, steps, duration) -> list:
     """Experiments that would decide what this log cannot: ambiguous findings and untestable candidates."""
-    from drake_est.diagnose.competition import ONE_SPEED_RATIO, speed_level_ratio
+    from drake_est.diagnose.competition import ONE_SPEED_RATIO, ambiguous_rivals, speed_level_ratio
     from drake_est.diagnose.detectors import stribeck_speeds
     out = []
     for s in steps:
@@ -461,7 +461,7 @@ def next_experiments(prep, steps, duration) -> list:
         if c.get("ambiguous"):
             j = int(s.ext.joint)
             jd = prep.joints.get(j)
-            names = [s.ext.effect] + list(c.get("ambiguous_with") or [c["runner_up"]])
+            names = [s.ext.effect] + ambiguous_rivals(c)
             pair = set(names)
             exp = {"reason": f"ambiguous between {' and '.join(names)}", "joint": j}
             time_vs_speed = c.get("confounded_with_speed") or (
