@@ -153,11 +153,15 @@ def _counts(rows) -> dict:
     oov_all = set(OOV) | set(LOOP_OOV)
     oov = [r for r in rows if set(r["truth"].split("+")) & oov_all]
     null = [r for r in rows if r["truth"] == "none"]
+    vocab = [r for r in rows if r["truth"] != "none" and not set(r["truth"].split(" (not visible")[0].split("+")) & oov_all]
     return {"logs": len(rows), "correct": sum(r["correct"] for r in rows),
             "wrong_names": sum(bool(r["wrong"]) for r in rows), "missed": sum(bool(r["missed"]) for r in rows),
             "oov_logs": len(oov), "oov_unexplained_right": sum(r["oov_unexplained"] and not r["wrong"] for r in oov),
             "oov_not_unexplained": sum(not r["oov_unexplained"] for r in rows),
             "null_logs": len(null), "null_logs_clean": sum(r["got"] == "none" for r in null),
+            # the "unexplained" verdict on logs whose planted effects are all in the vocabulary (none out of it,
+            # not null): structure the final model leaves although the generator planted nothing else
+            "vocab_logs": len(vocab), "vocab_logs_with_unexplained": sum(bool(r.get("unexplained")) for r in vocab),
             "logs_with_ambiguous_finding": sum("ambiguous(" in r["got"] for r in rows),
             "correct_all_named_outright": sum(bool(r["correct"]) and _named_outright(r) for r in rows),
             "not_visible_effects": sum(len(r.get("not_visible", {})) for r in rows),
@@ -183,6 +187,14 @@ def ambiguity_line(label, s) -> str:
     outright, logs with an ambiguous finding, wrong names, missed (tests/test_diagnose_testbench.py checks it)."""
     return (f"| {label} | {s['logs']} | {s['correct']} | {s['correct_all_named_outright']} | "
             f"{s['logs_with_ambiguous_finding']} | {s['wrong_names']} | {s['missed']} |")
+
+
+def unexplained_line(label, s) -> str:
+    """A row of the table of the "unexplained" verdict: out-of-vocabulary logs reported unexplained (and no
+    wrong name), null logs clean, logs with only vocabulary effects that also get an "unexplained" entry
+    (tests/test_diagnose_testbench.py checks it)."""
+    return (f"| {label} | {s['oov_unexplained_right']} / {s['oov_logs']} | {s['null_logs_clean']} / {s['null_logs']} | "
+            f"{s['vocab_logs_with_unexplained']} / {s['vocab_logs']} |")
 
 
 def _case(r) -> dict:

@@ -10,14 +10,16 @@ a fixed family-wise false-alarm rate (Bonferroni over the tests):
   (consecutive samples of the same validation block only), F-test of the lag coefficients.
 * on the moving but accelerating samples that the selection (9.9) leaves out (generic axes): ANOVA over
   jerk of the residual after an offset, the inertia and the derivative-filter error (snap) are regressed
-  out (a delay between torque and position samples, backlash).
+  out (a delay between torque and position samples, backlash), and the time-shift test
+  (:func:`_time_shift`); both only on samples whose velocity keeps one sign for ``SIGN_GUARD_S`` on both sides.
 * at velocity reversals (any sample rate, generic axes): the momentum balance over a window around each
   reversal, the torque impulse minus J dv, the viscous and the Coulomb impulse (its sign switched at the
   stationary point of the measured position), t-tested across reversals for a mean that inertia,
   viscous and offset errors do not explain (:func:`reversal_impulse`).
 
 A structure is reported when its p-value is below ``ALPHA_UNEXPLAINED / n_tests`` *and* it holds at least
-``MIN_SHARE`` of the residual variance (between-bin or predictable share).  No cause is named for it.
+``MIN_SHARE`` of the residual variance (between-bin or predictable share; ``MIN_SHARE_EXCLUDED`` for the jerk
+ANOVA on the left-out samples).  No cause is named for it.
 
 :func:`next_experiments` says which experiment would decide between candidates the log cannot separate
 or cannot test (too few low speeds, one speed only, too short for a thermal drift).
@@ -30,8 +32,14 @@ import scipy.stats
 ALPHA_UNEXPLAINED = 1e-3
 MIN_SHARE = 0.03
 #: on the accelerating samples left out by (9.9) the accelerations themselves are less accurate (derivative
-#: filter lag at jerks): a structure there must hold this much of the residual variance
+#: filter lag at jerks): a structure over jerk there must hold this much of the residual variance
 MIN_SHARE_EXCLUDED = 0.08
+#: [s] the left-out-sample tests (jerk, time shift) use a sample only when the measured velocity keeps one sign,
+#: above the moving threshold, this long on both sides of it: near a reversal or a start from rest the model's
+#: Coulomb sign is not known (the smoothed velocity's zero crossing shifts at asymmetric reversals, friction is
+#: set-valued at rest), and its error, a jump of 2 kc within the stencil, had been taken for a delay or backlash
+#: on null logs
+SIGN_GUARD_S = 0.1
 N_BINS = 20
 #: fewest accelerating samples for the left-out-sample tests (10 per ANOVA bin)
 MIN_EXCLUDED_SAMPLES = 200
@@ -99,6 +107,40 @@ def _whiteness(e, block, n_lags=N_LAGS):
     return p, 1.0 - rss1 / max(rss0, 1e-300), float(c[0])
 
 
+def one_sign_samples(v, v_min, n_guard):
+    """Boolean mask: True where ``v`` and its ``n_guard`` neighbours on both sides are all moving
+    (|v| > ``v_min``) in the same direction (the guard of :data:`SIGN_GUARD_S`)."""
+    s = (np.sign(v) * (np.abs(v) > v_min)).astype(np.int8)
+    n = s.size
+    if n_guard <= 0:
+        return s != 0
+    # a run of equal nonzero signs covers the window iff the window lies inside it: compare each sample's run
+    # with the run of its neighbours n_guard away
+    change = np.concatenate([[True], s[1:] != s[:-1]])
+    run = np.cumsum(change)
+    ok = s != 0
+    lo, hi = np.arange(n) - n_guard, np.arange(n) + n_guard
+    inside = (lo >= 0) & (hi < n)
+    ok &= inside
+    ok[inside] &= (run[lo[inside]] == run[inside]) & (run[hi[inside]] == run[inside])
+    return ok
+
+
+def _resmoothing_error(prep, jd):
+    """S(a) - a: the derivative filter applied once more to the smoothed acceleration, minus it.  Where the
+    true acceleration has a corner (a trapezoidal velocity profile) the Savitzky-Golay qdd errs by more than
+    its snap term; smoothing it again errs in nearly the same way, so this column stands for that error in
+    the left-out-sample tests (a nuisance, not evidence)."""
+    from scipy.signal import savgol_filter
+    win = (prep.log.meta.get("derivatives") or {}).get("window_s")
+    h = float(np.median(np.diff(jd.t)))
+    w = max(int(round((win or 0.04) / h)), 7)
+    w += 1 - w % 2
+    if w >= jd.a.size:
+        return np.zeros_like(jd.a)
+    return savgol_filter(jd.a, w, 3) - jd.a
+
+
 def _friction_at(model, fit, jd, j, idx, v=None):
     """The final model's friction (nominal + own extensions) at samples ``idx`` of joint j, at the logged
     velocities or at ``v`` (None when an extension cannot be evaluated there)."""
@@ -115,13 +157,16 @@ def _friction_at(model, fit, jd, j, idx, v=None):
 
 
 def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
-    """Is the measured torque the model's torque at another time?  On all moving samples, the residual
+    """Is the measured torque the model's torque at another time?  On the moving samples whose velocity keeps its
+    sign for max(K h, ``SIGN_GUARD_S``) on both sides (the stencil must not cross a Coulomb sign change), the residual
     e = tau - M is regressed on the odd difference D_k = (M(t - k h) - M(t + k h)) / 2 ~ -k h dM/dt for
     shifts k = 1 .. K (K h <= ``max_shift_s``), after an offset, the inertia (qdd) and the derivative-filter
     error (snap) are regressed out.  A delay d between torque and position samples leaves
     e = M(t - d) - M(t), i.e. mostly the k = d/h column; a zero-phase derivative filter leaves an even error
     that the odd difference does not pick up.  Returns (p, share, shift_s, var_e) for the best k (p
-    Bonferroni-corrected over the K shifts tried) or None; generic axes only."""
+    Bonferroni-corrected over the K shifts tried) or None; generic axes only.  Away from the reversals, where
+    dM/dt changes slowly, the D_k are nearly proportional to k and the best k is a weak estimate of the
+    delay; the velocity-reversal test's Coulomb-step equivalent (:func:`reversal_impulse`) is the better one."""
     jd = prep.joints[j]
     if prep.robot is not None:
         return None
@@ -132,7 +177,9 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     h = float(np.median(np.diff(jd.t)))
     K = int(max(1, min(20, round(max_shift_s / h))))
     thr = jd.counts["thresholds"]
-    idx = np.flatnonzero(np.abs(jd.v) > thr["v_min"])
+    # the stencil t +- K h must not cross a change of the Coulomb sign (SIGN_GUARD_S)
+    guard = max(K, int(np.ceil(SIGN_GUARD_S / h)))
+    idx = np.flatnonzero(one_sign_samples(jd.v, thr["v_min"], guard))
     idx = idx[(idx >= K) & (idx < N - K)]
     if idx.size < MIN_EXCLUDED_SAMPLES:
         return None
@@ -146,7 +193,7 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     e = jd.tau[idx] - M[idx]
     jerk = np.gradient(jd.a, jd.t)
     snap = np.gradient(jerk, jd.t)[idx]
-    Nu = np.column_stack([np.ones(idx.size), jd.a[idx], snap])
+    Nu = np.column_stack([np.ones(idx.size), jd.a[idx], snap, _resmoothing_error(prep, jd)[idx]])
     P = lambda x: x - Nu @ np.linalg.lstsq(Nu, x, rcond=None)[0]   # noqa: E731
     e = P(e)
     ss = float(e @ e)
@@ -163,8 +210,8 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
         return None
     gain, k = best
     n = idx.size
-    F = gain / max((ss - gain) / max(n - 4, 1), 1e-300)
-    p = min(1.0, K * float(scipy.stats.f.sf(F, 1, max(n - 4, 1))))
+    F = gain / max((ss - gain) / max(n - 5, 1), 1e-300)
+    p = min(1.0, K * float(scipy.stats.f.sf(F, 1, max(n - 5, 1))))
     return p, gain / ss, k * h, float(ss / n)
 
 
@@ -181,7 +228,7 @@ def _model_off_selection(prep, fit):
 def _excluded_moving(prep, fit, j, n_max=20000):
     """ANOVA over jerk of the final model's residual on the *moving but accelerating* samples that
     the data selection (9.9) left out (a delay between torque and position, backlash or an inertia error
-    shows there first).  The final model is evaluated at those samples through the same columns
+    shows there first), where the velocity keeps one sign for ``SIGN_GUARD_S`` on both sides.  The final model is evaluated at those samples through the same columns
     (:func:`~drake_est.identification.friction.extensions.columns_at`); None when an extension cannot be
     evaluated there (gear coupling, payload), for robot models (inverse dynamics only at the selected rows)
     or when too few such samples exist; else {variable: (p, share, where) or None}."""
@@ -191,7 +238,9 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     if model is None:
         return None
     thr = jd.counts["thresholds"]
-    idx = np.flatnonzero((np.abs(jd.v) > thr["v_min"]) & (np.abs(jd.a) > thr["a_max"]))
+    h = float(np.median(np.diff(jd.t)))
+    one_sign = one_sign_samples(jd.v, thr["v_min"], int(np.ceil(SIGN_GUARD_S / h)))
+    idx = np.flatnonzero(one_sign & (np.abs(jd.a) > thr["a_max"]))
     if idx.size < MIN_EXCLUDED_SAMPLES:
         return None
     idx = idx[:: max(1, idx.size // n_max)]
@@ -204,7 +253,7 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     jerk = jerk_all[idx]
     # nuisance, not evidence: an offset, an error of the identified inertia (qdd) and the error of the
     # smoothed second derivative (a Savitzky-Golay qdd errs by about c h^2 d^4q/dt^4, i.e. the snap)
-    N = np.column_stack([np.ones(idx.size), jd.a[idx], snap])
+    N = np.column_stack([np.ones(idx.size), jd.a[idx], snap, _resmoothing_error(prep, jd)[idx]])
     e = e - N @ np.linalg.lstsq(N, e, rcond=None)[0]
     # jerk: a delay d between torque and position samples leaves -d dtau/dt = -d (J jerk + kv qdd + ...);
     # its qdd part is absorbed by the inertia, the jerk part is not (no axis model depends on jerk); backlash
@@ -411,7 +460,7 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
         # a quantized torque leaves a deterministic error below one step that follows the torque level
         if steps[j] > 0 and np.sqrt(share * v_e) < steps[j]:
             continue
-        need = max(min_share, MIN_SHARE_EXCLUDED) if name.endswith(("_excluded_samples", "_vs_position")) else min_share
+        need = max(min_share, MIN_SHARE_EXCLUDED) if name.endswith("_excluded_samples") else min_share
         if p < alpha / n_tests and share >= need:
             d = {"joint": int(j), "variable": name, "p_value": p, "share_of_residual_variance": float(share),
                  "samples": "accelerating samples left out by (9.9)" if name.endswith("_excluded_samples")
@@ -421,7 +470,7 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
                 d["lag1_coefficient"] = where
             elif name == "time_shift_torque_vs_position":
                 d["test"] = "F-test of the odd model-torque difference (torque = model at a shifted time)"
-                d["samples"] = "all moving samples"
+                d["samples"] = f"moving samples with one velocity sign for {SIGN_GUARD_S:g} s (or the largest shift) on both sides"
                 d["best_shift_s"] = where
             else:
                 d["largest_deviation_bin_upper_edge"] = where

@@ -1,0 +1,64 @@
+"""The left-out-sample tests of the "unexplained" verdict (time shift, jerk ANOVA) use a sample only where the
+velocity keeps one sign for SIGN_GUARD_S on both sides: near a reversal or a start from rest the model's
+Coulomb sign is not known, and its error had been reported as unexplained structure on null logs of the
+closed-loop generator (loop spec 326), while structure away from the reversals still shows (loop spec 371,
+backlash under point-to-point moves, now reported)."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drake_est.diagnose import diagnose
+from drake_est.diagnose.testbench_loop import generate
+from drake_est.diagnose.unexplained import one_sign_samples
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+
+def _brute(v, v_min, g):
+    s = np.sign(v) * (np.abs(v) > v_min)
+    n = v.size
+    out = np.zeros(n, bool)
+    for i in range(g, n - g):
+        w = s[i - g:i + g + 1]
+        out[i] = w[0] != 0 and np.all(w == w[0])
+    return out
+
+
+def test_one_sign_samples_matches_a_sliding_window():
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        n = int(rng.integers(1, 80))
+        v = np.cumsum(rng.normal(size=n)) * rng.choice([0.1, 1.0])
+        g = int(rng.integers(0, 6))
+        assert np.array_equal(one_sign_samples(v, 0.3, g), _brute(v, 0.3, g)), (v, g)
+
+
+def _loop_spec(k):
+    from bench_diagnose_testbench import loop_cases
+    spec = loop_cases(k + 1)[k]
+    log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
+                          sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
+    return diagnose(log, robot="generic", seed=0, simulate=False).to_dict(), truth
+
+
+def test_null_log_reversals_are_not_unexplained():
+    """Loop spec 326: a null multisine log (100 Hz, Student-t noise) whose jerk ANOVA had held 12 % of the
+    left-out residual, all of it at velocity reversals."""
+    d, truth = _loop_spec(326)
+    assert truth["effects"] == []
+    assert d["findings"] == [] and d["unexplained"] == [], d["unexplained"]
+
+
+def test_backlash_under_p2p_moves_is_unexplained():
+    """Loop spec 371: backlash under point-to-point moves (50 Hz), which ended as "none" before: the time
+    shift away from the reversals holds about 7 % of the residual variance."""
+    d, truth = _loop_spec(371)
+    assert truth["effects"] == ["backlash"]
+    assert d["findings"] == []
+    shift = [u for u in d["unexplained"] if u["variable"] == "time_shift_torque_vs_position"]
+    assert shift and shift[0]["share_of_residual_variance"] >= 0.03, d["unexplained"]
+    assert "one velocity sign" in shift[0]["samples"]
