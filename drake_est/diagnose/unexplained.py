@@ -9,8 +9,8 @@ a fixed family-wise false-alarm rate (Bonferroni over the tests):
 * whiteness over time: regression of the residual on its ``N_LAGS`` previous held-out samples
   (consecutive samples of the same validation block only), F-test of the lag coefficients.
 * on the moving but accelerating samples that the selection (9.9) leaves out (generic axes): ANOVA over
-  jerk of the residual after an offset, the inertia and the derivative-filter error (snap) are regressed
-  out (a delay between torque and position samples, backlash), and the time-shift test
+  jerk of the residual after an offset, the inertia and the derivative-filter error (snap, re-smoothing
+  error) are regressed out (a delay between torque and position samples, backlash), and the time-shift test
   (:func:`_time_shift`); both only on samples whose velocity keeps one sign for ``SIGN_GUARD_S`` on both sides.
 * at velocity reversals (any sample rate, generic axes): the momentum balance over a window around each
   reversal, the torque impulse minus J dv, the viscous and the Coulomb impulse (its sign switched at the
@@ -161,7 +161,8 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     sign for max(K h, ``SIGN_GUARD_S``) on both sides (the stencil must not cross a Coulomb sign change), the residual
     e = tau - M is regressed on the odd difference D_k = (M(t - k h) - M(t + k h)) / 2 ~ -k h dM/dt for
     shifts k = 1 .. K (K h <= ``max_shift_s``), after an offset, the inertia (qdd) and the derivative-filter
-    error (snap) are regressed out.  A delay d between torque and position samples leaves
+    error (snap, and the re-smoothing error :func:`_resmoothing_error`) are regressed out.  A delay d between torque
+    and position samples leaves
     e = M(t - d) - M(t), i.e. mostly the k = d/h column; a zero-phase derivative filter leaves an even error
     that the odd difference does not pick up.  Returns (p, share, shift_s, var_e) for the best k (p
     Bonferroni-corrected over the K shifts tried) or None; generic axes only.  Away from the reversals, where
@@ -228,7 +229,8 @@ def _model_off_selection(prep, fit):
 def _excluded_moving(prep, fit, j, n_max=20000):
     """ANOVA over jerk of the final model's residual on the *moving but accelerating* samples that
     the data selection (9.9) left out (a delay between torque and position, backlash or an inertia error
-    shows there first), where the velocity keeps one sign for ``SIGN_GUARD_S`` on both sides.  The final model is evaluated at those samples through the same columns
+    shows there first), where the velocity keeps one sign for ``SIGN_GUARD_S`` on both sides.  The final model
+    is evaluated at those samples through the same columns
     (:func:`~drake_est.identification.friction.extensions.columns_at`); None when an extension cannot be
     evaluated there (gear coupling, payload), for robot models (inverse dynamics only at the selected rows)
     or when too few such samples exist; else {variable: (p, share, where) or None}."""
@@ -252,7 +254,8 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     snap = np.gradient(jerk_all, jd.t)[idx]
     jerk = jerk_all[idx]
     # nuisance, not evidence: an offset, an error of the identified inertia (qdd) and the error of the
-    # smoothed second derivative (a Savitzky-Golay qdd errs by about c h^2 d^4q/dt^4, i.e. the snap)
+    # smoothed second derivative (a Savitzky-Golay qdd errs by about c h^2 d^4q/dt^4, i.e. the snap, and by
+    # more at corners of the acceleration, which the re-smoothing error follows)
     N = np.column_stack([np.ones(idx.size), jd.a[idx], snap, _resmoothing_error(prep, jd)[idx]])
     e = e - N @ np.linalg.lstsq(N, e, rcond=None)[0]
     # jerk: a delay d between torque and position samples leaves -d dtau/dt = -d (J jerk + kv qdd + ...);
