@@ -89,3 +89,15 @@ def test_null_log_starts_and_reversals_are_not_a_time_shift():
                           noise=spec["noise"], noise_std=spec["noise_std"])
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert d["findings"] == [] and d["unexplained"] == [], d["unexplained"]
+
+
+def test_one_sign_windows_do_not_span_a_gap_between_logs():
+    """Two logs joined with a gap (concatenate_logs), both moving forward across the join: no window that holds
+    samples of both logs is used."""
+    h = 0.01
+    t = np.concatenate([np.arange(100) * h, 1.99 + 1.0 + np.arange(100) * h])
+    v = np.ones(200)
+    m = one_sign_samples(v, 0.1, 5, t)
+    assert not m[95:105].any()
+    assert m[5:95].all() and m[105:195].all()
+    assert one_sign_samples(v, 0.1, 5)[95:105].all()      # without the time stamps the join is not seen

@@ -107,9 +107,11 @@ def _whiteness(e, block, n_lags=N_LAGS):
     return p, 1.0 - rss1 / max(rss0, 1e-300), float(c[0])
 
 
-def one_sign_samples(v, v_min, n_guard):
+def one_sign_samples(v, v_min, n_guard, t=None):
     """Boolean mask: True where ``v`` and its ``n_guard`` neighbours on both sides are all moving
-    (|v| > ``v_min``) in the same direction (the guard of :data:`SIGN_GUARD_S`)."""
+    (|v| > ``v_min``) in the same direction (the guard of :data:`SIGN_GUARD_S`).  With the time stamps ``t``, a
+    gap (a step over 1.5 median intervals: the join of several logs, :func:`~drake_est.diagnose.concatenate_logs`)
+    ends a run as a sign change does: no window spans two logs."""
     s = (np.sign(v) * (np.abs(v) > v_min)).astype(np.int8)
     n = s.size
     if n_guard <= 0:
@@ -117,6 +119,9 @@ def one_sign_samples(v, v_min, n_guard):
     # a run of equal nonzero signs covers the window iff the window lies inside it: compare each sample's run
     # with the run of its neighbours n_guard away
     change = np.concatenate([[True], s[1:] != s[:-1]])
+    if t is not None and n > 1:
+        dt = np.diff(np.asarray(t, float))
+        change[1:] |= dt > 1.5 * float(np.median(dt))
     run = np.cumsum(change)
     ok = s != 0
     lo, hi = np.arange(n) - n_guard, np.arange(n) + n_guard
@@ -180,7 +185,7 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     thr = jd.counts["thresholds"]
     # the stencil t +- K h must not cross a change of the Coulomb sign (SIGN_GUARD_S)
     guard = max(K, int(np.ceil(SIGN_GUARD_S / h)))
-    idx = np.flatnonzero(one_sign_samples(jd.v, thr["v_min"], guard))
+    idx = np.flatnonzero(one_sign_samples(jd.v, thr["v_min"], guard, jd.t))
     idx = idx[(idx >= K) & (idx < N - K)]
     if idx.size < MIN_EXCLUDED_SAMPLES:
         return None
@@ -241,7 +246,7 @@ def _excluded_moving(prep, fit, j, n_max=20000):
         return None
     thr = jd.counts["thresholds"]
     h = float(np.median(np.diff(jd.t)))
-    one_sign = one_sign_samples(jd.v, thr["v_min"], int(np.ceil(SIGN_GUARD_S / h)))
+    one_sign = one_sign_samples(jd.v, thr["v_min"], int(np.ceil(SIGN_GUARD_S / h)), jd.t)
     idx = np.flatnonzero(one_sign & (np.abs(jd.a) > thr["a_max"]))
     if idx.size < MIN_EXCLUDED_SAMPLES:
         return None
