@@ -148,12 +148,17 @@ def _matrix(conf) -> str:
     return "\n".join(L)
 
 
+def _planted(r) -> set:
+    """The planted effects of a row that the log shows (its truth label without the "(not visible: ...)" part)."""
+    return {e for e in r["truth"].split(" (not visible")[0].split("+") if e and e != "none"}
+
+
 def _counts(rows) -> dict:
     conf = Counter((r["truth"], r["got"]) for r in rows)
     oov_all = set(OOV) | set(LOOP_OOV)
     oov = [r for r in rows if set(r["truth"].split("+")) & oov_all]
     null = [r for r in rows if r["truth"] == "none"]
-    vocab = [r for r in rows if r["truth"] != "none" and not set(r["truth"].split(" (not visible")[0].split("+")) & oov_all]
+    vocab = [r for r in rows if r["truth"] != "none" and not _planted(r) & oov_all]
     return {"logs": len(rows), "correct": sum(r["correct"] for r in rows),
             "wrong_names": sum(bool(r["wrong"]) for r in rows), "missed": sum(bool(r["missed"]) for r in rows),
             "oov_logs": len(oov), "oov_unexplained_right": sum(r["oov_unexplained"] and not r["wrong"] for r in oov),
@@ -176,8 +181,7 @@ def _counts(rows) -> dict:
 def _named_outright(r) -> bool:
     """Every planted vocabulary effect of the row is named as a finding of its own, not only inside an
     ``ambiguous(A|B)`` finding (effects the generator marks not visible are not required)."""
-    truth = r["truth"].split(" (not visible")[0]
-    planted = {e for e in truth.split("+") if e and e != "none"} - set(OOV) - set(LOOP_OOV)
+    planted = _planted(r) - set(OOV) - set(LOOP_OOV)
     plain = {g for g in r["got"].split("+") if not g.startswith("ambiguous(")}
     return planted <= plain
 

@@ -146,6 +146,17 @@ def _resmoothing_error(prep, jd):
     return savgol_filter(jd.a, w, 3) - jd.a
 
 
+def _derivative_nuisance(prep, jd, idx):
+    """Nuisance columns of the left-out-sample tests at samples ``idx`` (not evidence): an offset, an error of the
+    identified inertia (qdd) and the error of the smoothed second derivative (a Savitzky-Golay qdd errs by about
+    c h^2 d^4q/dt^4, i.e. the snap, and by more at corners of the acceleration, which the re-smoothing error
+    :func:`_resmoothing_error` follows).  Returns (columns, jerk at every sample)."""
+    jerk = np.gradient(jd.a, jd.t)
+    snap = np.gradient(jerk, jd.t)
+    cols = np.column_stack([np.ones(idx.size), jd.a[idx], snap[idx], _resmoothing_error(prep, jd)[idx]])
+    return cols, jerk
+
+
 def _friction_at(model, fit, jd, j, idx, v=None):
     """The final model's friction (nominal + own extensions) at samples ``idx`` of joint j, at the logged
     velocities or at ``v`` (None when an extension cannot be evaluated there)."""
@@ -197,9 +208,7 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     M = np.full(N, np.nan)
     M[allk] = jd.rb[allk] + Mf
     e = jd.tau[idx] - M[idx]
-    jerk = np.gradient(jd.a, jd.t)
-    snap = np.gradient(jerk, jd.t)[idx]
-    Nu = np.column_stack([np.ones(idx.size), jd.a[idx], snap, _resmoothing_error(prep, jd)[idx]])
+    Nu, _ = _derivative_nuisance(prep, jd, idx)
     P = lambda x: x - Nu @ np.linalg.lstsq(Nu, x, rcond=None)[0]   # noqa: E731
     e = P(e)
     ss = float(e @ e)
@@ -255,13 +264,8 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     if pred is None:
         return None
     e = (jd.tau - jd.rb)[idx] - pred
-    jerk_all = np.gradient(jd.a, jd.t)
-    snap = np.gradient(jerk_all, jd.t)[idx]
+    N, jerk_all = _derivative_nuisance(prep, jd, idx)
     jerk = jerk_all[idx]
-    # nuisance, not evidence: an offset, an error of the identified inertia (qdd) and the error of the
-    # smoothed second derivative (a Savitzky-Golay qdd errs by about c h^2 d^4q/dt^4, i.e. the snap, and by
-    # more at corners of the acceleration, which the re-smoothing error follows)
-    N = np.column_stack([np.ones(idx.size), jd.a[idx], snap, _resmoothing_error(prep, jd)[idx]])
     e = e - N @ np.linalg.lstsq(N, e, rcond=None)[0]
     # jerk: a delay d between torque and position samples leaves -d dtau/dt = -d (J jerk + kv qdd + ...);
     # its qdd part is absorbed by the inertia, the jerk part is not (no axis model depends on jerk); backlash
@@ -478,7 +482,8 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
                 d["lag1_coefficient"] = where
             elif name == "time_shift_torque_vs_position":
                 d["test"] = "F-test of the odd model-torque difference (torque = model at a shifted time)"
-                d["samples"] = f"moving samples with one velocity sign for {SIGN_GUARD_S:g} s (or the largest shift) on both sides"
+                d["samples"] = (f"moving samples with one velocity sign for {SIGN_GUARD_S:g} s (or the largest shift) "
+                                "on both sides")
                 d["best_shift_s"] = where
             else:
                 d["largest_deviation_bin_upper_edge"] = where
