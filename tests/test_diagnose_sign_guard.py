@@ -9,7 +9,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from drake_est.diagnose import diagnose
 from drake_est.diagnose.testbench_loop import generate
