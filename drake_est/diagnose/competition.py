@@ -24,6 +24,10 @@ Two checks that run before a candidate of :mod:`drake_est.diagnose.core` is acce
   training speeds' quantiles), the same partial F-test -- unless the free curve does not explain anything
   beyond the law in time either (speeds and time confounded in the log: e.g. the moves after a change all
   faster than those before it), when the law in time stands.
+* **A position friction that a speed law explains as well.**  Under point-to-point moves each position is
+  passed at one speed, and a friction level that changes with q fits the misfit of a speed law of another
+  shape.  A position-dependent friction that is not significant given the free friction curve is reported as
+  ambiguous with ``stribeck`` (:func:`position_law_confounded`); it stays in the model.
 """
 from __future__ import annotations
 
@@ -47,6 +51,9 @@ CONFOUNDABLE = ("stribeck", "energy_dependent_friction", "abrupt_change")
 NUISANCE_SINUSOIDS = 3
 #: laws in time that must beat a free friction curve (:func:`speed_law_nuisance`)
 TIME_LAWS = ("energy_dependent_friction", "abrupt_change")
+#: friction laws in position reported ambiguous with ``stribeck`` when a free friction curve explains them
+#: (:func:`position_law_confounded`)
+POSITION_FRICTION_LAWS = ("position_dependent_friction",)
 #: knots per direction of the free friction curve of :func:`speed_law_nuisance`
 SPEED_LAW_KNOTS = 8
 
@@ -216,6 +223,28 @@ def survives_speed_law(prep, model, fit, ext, alpha: float, min_gain: float, nui
             t["significant"] = True
             t["confounded_with_speed"] = True
     return t
+
+
+def position_law_confounded(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None):
+    """A position-dependent friction (a friction level that changes with q) that a free friction curve of its joint
+    (:func:`speed_law_nuisance`) explains as well: the partial held-out F-test of its columns given the curve is
+    not significant.  When each position is passed at one speed (point-to-point moves), a friction level that
+    changes with q and one that changes with |qd| give the same residual, e.g. the misfit of a Stribeck law of
+    another shape.  Unlike a law in time the finding is not set aside (it may be the step that lets a later,
+    smaller finding be seen); it is reported as ambiguous with ``stribeck`` (the vocabulary's speed law, of any
+    shape).  Returns None when it does not apply or the finding is separated, else the reverse test (the curve
+    given the position law) and the forward one."""
+    if ext.effect not in POSITION_FRICTION_LAWS or ext.shared:
+        return None
+    N = speed_law_nuisance(prep, ext.joint) if nuisance is None else nuisance
+    if N is None:
+        return None
+    t = _partial_test(prep, model, ext.joint, N, ext.cols[ext.joint], alpha, min_gain, solve)
+    if t["significant"]:
+        return None
+    back = _partial_test(prep, model, ext.joint, ext.cols[ext.joint], N, alpha, min_gain, solve)
+    return {**{k: back[k] for k in ("p_value", "rmse_reduction", "score")},
+            "position_law_given_speed_law": {k: t[k] for k in ("p_value", "rmse_reduction", "score")}}
 
 
 def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None) -> dict:

@@ -506,17 +506,26 @@ def _competition(ext, tst, results, prep=None) -> dict:
 
 def _speed_confound(out, tst) -> dict:
     """A law in time that a free friction curve explains as well (and the curve adds nothing to it,
-    ``tst["confounded_with_speed"]`` from :func:`~drake_est.diagnose.competition.survives_speed_law`): the log cannot
-    tell a change in time from a speed law, so the finding is also ambiguous with ``stribeck``."""
-    if not tst.get("confounded_with_speed"):
+    ``tst["confounded_with_speed"]`` from :func:`~drake_est.diagnose.competition.survives_speed_law`), or a position
+    friction that the curve explains as well (:func:`~drake_est.diagnose.competition.position_law_confounded`): the
+    log cannot tell it from a speed law, so the finding is also ambiguous with ``stribeck``."""
+    c = tst.get("confounded_with_speed")
+    if not c:
         return out
-    why = ("time and speed are confounded in this log: a free friction curve of each direction explains the "
-           "held-out data as well as this law in time (and adds nothing to it, "
-           f"p = {tst['confounded_with_speed']['p_value']:.2g}), so a speed-dependent friction (stribeck) is "
-           "not ruled out")
+    if "position_law_given_speed_law" in c:
+        why = ("position and speed are confounded in this log: a free friction curve of each direction explains "
+               "the held-out data as well as this position law (which adds nothing to it, "
+               f"p = {c['position_law_given_speed_law']['p_value']:.2g}; the curve given the position law: "
+               f"p = {c['p_value']:.2g}), so a speed-dependent friction (stribeck) is not ruled out")
+    else:
+        why = ("time and speed are confounded in this log: a free friction curve of each direction explains the "
+               "held-out data as well as this law in time (and adds nothing to it, "
+               f"p = {c['p_value']:.2g}), so a speed-dependent friction (stribeck) is not ruled out")
     was = list(out.get("ambiguous_with") or []) if out.get("ambiguous") else []
     out.update({"ambiguous": True, "ambiguous_with": was + [e for e in ["stribeck"] if e not in was],
                 "reason": "; ".join([r for r in [out.get("reason")] if r] + [why]), "confounded_with_speed": True})
+    if "position_law_given_speed_law" in c:
+        out["position_vs_speed"] = True
     return out
 
 
@@ -582,6 +591,14 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
                 away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "periodic_residual",
                              **{k: v for k, v in t.items() if k != "significant"}})
                 continue
+        if ext.effect in comp.POSITION_FRICTION_LAWS and not ext.shared:
+            if ext.joint not in speed_nuisance:
+                speed_nuisance[ext.joint] = comp.speed_law_nuisance(prep, ext.joint)
+            c = comp.position_law_confounded(prep, model, fit, ext, alpha, min_gain,
+                                             nuisance=speed_nuisance[ext.joint], solve=_model_solver(model, ext.joint)) \
+                if speed_nuisance[ext.joint] is not None else None
+            if c is not None:
+                r[1]["confounded_with_speed"] = c
         return r, away
     return None, away
 
@@ -615,6 +632,32 @@ def backfit_changes(prep, model, fit, sigma):
         if _train_rss(prep, f2, j) < _train_rss(prep, fit, j):
             new.evidence["backfitted_from_t_change_s"] = float(e.spec["t_change"])
             moved.append((j, float(e.spec["t_change"]), float(new.spec["t_change"]), e, new))
+            model, fit = m2, f2
+    return model, fit, moved
+
+
+def backfit_periodic(prep, model, fit, sigma):
+    """Backfitting of an accepted time-periodic disturbance (the change backfit's counterpart): its frequency and
+    harmonics were found on the residual of the model at the time it was accepted, where a larger effect not yet
+    in the model (a position friction, say) can bias the frequency and hide a harmonic; a harmonic left out moves
+    the axis at its frequency, biases the inertia of the closed-loop fit and is later taken for another effect.
+    Once later findings are in the model, the disturbance is estimated again on its partial residual
+    (:func:`~drake_est.diagnose.detectors.time_periodic_refit`) and replaced when that lowers the training
+    residual.  Returns ``(model, fit, moved)`` with ``moved`` a list of (joint, old extension, new extension)."""
+    moved = []
+    for e in list(model.exts):
+        if e.effect != "time_periodic_disturbance" or e.shared:
+            continue
+        j = e.joint
+        jd = prep.joints[j]
+        r_p = jd.y - fit.pred[j] + e.cols[j] @ model.coef_slices(fit, j)[e.effect]
+        new = det.time_periodic_refit(jd, r_p, e)
+        if new is None:
+            continue
+        m2 = Model(prep, [new if x is e else x for x in model.exts])
+        f2 = m2.fit(sigma)
+        if _train_rss(prep, f2, j) < _train_rss(prep, fit, j):
+            moved.append((j, e, new))
             model, fit = m2, f2
     return model, fit, moved
 
@@ -877,9 +920,26 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
                     if st.ext is old_ext:
                         st.ext = new_ext
                 changed |= {j}
+        if ext.effect != "time_periodic_disturbance" and any(
+                e.effect == "time_periodic_disturbance" for e in model.exts):
+            model, fit, periodic_moved = backfit_periodic(prep, model, fit, sigma)
+            for j, old_ext, new_ext in periodic_moved:
+                for st in steps:
+                    if st.ext is old_ext:
+                        st.ext = new_ext
+                changed |= {j}
+        else:
+            periodic_moved = []
         js = list(ext.cols)
         steps.append(Step(ext, tst, f1, _val_metrics(prep, f1, js), {j: _val_metrics(prep, f1, [j]) for j in js},
                           competition))
+        if periodic_moved:
+            # parameters are reported from the fit of each step (report.effect_parameters): the steps from the
+            # refitted disturbance on are refitted with its new columns (their tests and validation stay those
+            # of their round)
+            first = min(k for k, st in enumerate(steps) if any(st.ext is m[2] for m in periodic_moved))
+            for k in range(first, len(steps)):
+                steps[k].fit = Model(prep, [s.ext for s in steps[:k + 1]]).fit(sigma)
     return fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma
 
 

@@ -615,6 +615,85 @@ def motion_lines_hz(jd, share: float = MOTION_LINE_SHARE, swing: float = MOTION_
     return np.asarray(out, float)
 
 
+#: a harmonic 2f or 3f of a time-periodic disturbance joins it when a partial F-test of its cos/sin pair on the
+#: training residual gives a p-value below this
+HARMONIC_P = 1e-6
+
+
+def _tp_basis(t, freqs):
+    """[1, cos 2 pi f_k t ..., sin 2 pi f_k t ...] (columns of a time-periodic disturbance beside an offset)."""
+    W = 2 * np.pi * np.outer(t, np.asarray(freqs, float))
+    return np.hstack([np.ones((t.size, 1)), np.cos(W), np.sin(W)])
+
+
+def _harmonics(tt, rt, f, freqs, h, skip=()):
+    """``freqs`` (which hold the fundamental ``f`` [Hz]) with each harmonic 2f, 3f below 0.45 / h [Hz] added that
+    lowers the residual ``rt`` at times ``tt`` by a partial F-test at p < :data:`HARMONIC_P`; harmonics within
+    ``skip``'s frequency bands ((lo, hi) pairs) are not tried."""
+    import scipy.stats
+    freqs = list(freqs)
+    B = _tp_basis(tt, freqs)
+    e_cur = rt - B @ np.linalg.lstsq(B, rt, rcond=None)[0]
+    for k in (2, 3):
+        fk = k * f
+        if fk >= 0.45 / h:
+            break
+        if any(abs(fk - x) <= 1e-9 * f for x in freqs) or any(lo <= fk <= hi for lo, hi in skip):
+            continue
+        Bk = _tp_basis(tt, freqs + [fk])
+        ek = rt - Bk @ np.linalg.lstsq(Bk, rt, rcond=None)[0]
+        rss0, rss1 = float(e_cur @ e_cur), float(ek @ ek)
+        dof = max(tt.size - Bk.shape[1], 1)
+        F = ((rss0 - rss1) / 2.0) / max(rss1 / dof, 1e-300)
+        if F > 0 and scipy.stats.f.sf(F, 2, dof) < HARMONIC_P:
+            freqs.append(fk)
+            e_cur = ek
+    return freqs
+
+
+def time_periodic_refit(jd, r_p, ext):
+    """A time-periodic disturbance ``ext`` estimated again on its *partial* residual ``r_p`` (the current residual
+    plus its own part) once later findings are in the model: when it was accepted, a larger unmodeled effect (a
+    position friction, say) dominated the residual, which biased its frequency and hid its harmonics, and a
+    harmonic left out is later taken for another effect.  The fundamental f is refined by a bounded scalar
+    search over f +- 1 / (4 T) (T: training span; the harmonic orders kept), then each harmonic 2f, 3f is tested
+    as in :func:`time_periodic` (those at the motion's own lines, :func:`motion_lines_hz`, are not tried: there a
+    state-dependent misfit repeats with the motion).  Returns the new Extension, or None when nothing moved."""
+    import scipy.optimize
+    tr = jd.train
+    t = jd.t[jd.rows]
+    tt, rt = t[tr], np.asarray(r_p, float)[tr]
+    T = float(np.ptp(tt))
+    fr = [float(x) for x in ext.spec["frequencies_hz"]]
+    if T <= 0 or tt.size < 50 or not fr:
+        return None
+    f0 = fr[0]
+    orders = [x / f0 for x in fr]
+    h = float(np.median(np.diff(jd.t)))
+
+    def rss(f):
+        B = _tp_basis(tt, [o * f for o in orders])
+        e = rt - B @ np.linalg.lstsq(B, rt, rcond=None)[0]
+        return float(e @ e)
+
+    half = 0.25 / T
+    res = scipy.optimize.minimize_scalar(rss, bounds=(max(f0 - half, 0.5 * f0), f0 + half), method="bounded",
+                                         options={"xatol": 1e-4 / T})
+    f = float(res.x) if res.success and rss(float(res.x)) < rss(f0) else f0
+    T_log = float(np.ptp(jd.t))
+    skip = [(fl - 2.0 / max(T_log, 1e-12), fl + 2.0 / max(T_log, 1e-12)) for fl in motion_lines_hz(jd)]
+    freqs = _harmonics(tt, rt, f, [o * f for o in orders], h, skip)
+    if len(freqs) == len(fr) and abs(f - f0) <= 1e-3 / T:
+        return None
+    W = 2 * np.pi * np.outer(t, np.asarray(freqs))
+    C = np.hstack([np.cos(W), np.sin(W)])
+    names = ([f"a_cos_{i + 1}" for i in range(len(freqs))] + [f"a_sin_{i + 1}" for i in range(len(freqs))]
+             if len(freqs) > 1 else ["a_cos", "a_sin"])
+    spec = {**ext.spec, "frequencies_hz": freqs}
+    ev = {**ext.evidence, "frequency_hz": f, "harmonics_hz": freqs[1:], "refitted_from_frequency_hz": f0}
+    return Extension("time_periodic_disturbance", jd.joint, {jd.joint: C}, names, spec, ev)
+
+
 def time_periodic(jd, r, n_components=1, skip_motion_lines=True):
     """A torque periodic in *time* (pump, fan, neighbouring machine): the least-squares periodogram of
     the training residual over time (the spectral tools of Ch. 10 with time as the sampling location,
@@ -674,24 +753,9 @@ def time_periodic(jd, r, n_components=1, skip_motion_lines=True):
     c = np.linalg.lstsq(B, rt, rcond=None)[0]
     amp = float(np.hypot(c[1], c[2]))
     # a pump or a fan is rarely a pure sinusoid: its harmonics 2f, 3f (below Nyquist) join the candidate when
-    # each lowers the training residual by a partial F-test at p < 1e-6; left out, a harmonic stays in the
+    # each lowers the training residual by a partial F-test at p < HARMONIC_P; left out, a harmonic stays in the
     # residual and is later taken for another effect
-    import scipy.stats
-    freqs_h = [f]
-    e_cur = rt - B @ c
-    for k in (2, 3):
-        fk = k * f
-        if fk >= 0.45 / h:
-            break
-        wk = 2 * np.pi * fk * tt
-        Bk = np.column_stack([B, np.cos(wk), np.sin(wk)])
-        ek = rt - Bk @ np.linalg.lstsq(Bk, rt, rcond=None)[0]
-        rss0, rss1 = float(e_cur @ e_cur), float(ek @ ek)
-        dof = max(tt.size - Bk.shape[1], 1)
-        F = ((rss0 - rss1) / 2.0) / max(rss1 / dof, 1e-300)
-        if F > 0 and scipy.stats.f.sf(F, 2, dof) < 1e-6:
-            freqs_h.append(fk)
-            B, e_cur = Bk, ek
+    freqs_h = _harmonics(tt, rt, f, [f], h)
     if len(freqs_h) > 1:
         W = 2 * np.pi * np.outer(t, np.asarray(freqs_h))
         C = np.hstack([np.cos(W), np.sin(W)])

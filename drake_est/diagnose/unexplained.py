@@ -528,7 +528,17 @@ def next_experiments(prep, steps, duration) -> list:
             exp = {"reason": f"ambiguous between {' and '.join(names)}", "joint": j}
             time_vs_speed = c.get("confounded_with_speed") or (
                 "stribeck" in pair and pair & {"abrupt_change", "energy_dependent_friction"})
-            if time_vs_speed and jd is not None:
+            if c.get("position_vs_speed") and jd is not None:
+                v = np.abs(jd.v[jd.rows])
+                lo, hi = float(np.quantile(v, 0.05)), float(np.quantile(v, 0.95))
+                qa, qb = float(np.min(jd.q)), float(np.max(jd.q))
+                exp["experiment"] = (f"constant-speed passes of joint {j} over the same positions ({qa:.3g} to "
+                                     f"{qb:.3g}) at three speeds from {lo:.3g} to {hi:.3g} per s, both directions: a "
+                                     "position friction keeps its shape in position at every speed, a speed law "
+                                     "moves with the speed")
+                exp["speeds"] = [lo, float(np.sqrt(lo * hi)), hi]
+                exp["position_range_covered"] = [qa, qb]
+            elif time_vs_speed and jd is not None:
                 v = np.abs(jd.v[jd.rows])
                 lo, hi = float(np.quantile(v, 0.05)), float(np.quantile(v, 0.95))
                 exp["experiment"] = (f"the same set of speeds of joint {j}, from {lo:.3g} to {hi:.3g} per s in both "
