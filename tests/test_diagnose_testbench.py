@@ -150,23 +150,31 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout_round3.json", "third round's final code"),
                      ("diagnose_testbench_loop_heldout_round4.json", "fourth round's final code"),
                      ("diagnose_testbench_loop_heldout_round5.json", "fifth round's final code"),
-                     ("diagnose_testbench_loop_heldout.json", "sixth round's final code"),
+                     ("diagnose_testbench_loop_heldout_round6.json", "sixth round's final code"),
+                     ("diagnose_testbench_loop_heldout.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout200_round3.json", "third round's final code (commit 67c6825)"),
                      ("diagnose_testbench_loop_heldout200_round4.json", "fourth round's final code"),
                      ("diagnose_testbench_loop_heldout200_round5.json", "fifth round's final code"),
-                     ("diagnose_testbench_loop_heldout200.json", "sixth round's final code"),
+                     ("diagnose_testbench_loop_heldout200_round6.json", "sixth round's final code"),
+                     ("diagnose_testbench_loop_heldout200.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout300_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout300_round5_first.json", "fifth round's first code (commit 4c422f1)"),
                      ("diagnose_testbench_loop_heldout300_round5.json", "fifth round's final code"),
-                     ("diagnose_testbench_loop_heldout300.json", "sixth round's final code"),
+                     ("diagnose_testbench_loop_heldout300_round6.json", "sixth round's final code"),
+                     ("diagnose_testbench_loop_heldout300.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout400_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout400_round5.json", "fifth round's final code"),
-                     ("diagnose_testbench_loop_heldout400.json", "sixth round's final code"),
+                     ("diagnose_testbench_loop_heldout400_round6.json", "sixth round's final code"),
+                     ("diagnose_testbench_loop_heldout400.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout500_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout500_round5.json", "fifth round's final code"),
-                     ("diagnose_testbench_loop_heldout500.json", "sixth round's final code"),
+                     ("diagnose_testbench_loop_heldout500_round6.json", "sixth round's final code"),
+                     ("diagnose_testbench_loop_heldout500.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout600_round5.json", "fifth round's final code (commit cd0d332)"),
-                     ("diagnose_testbench_loop_heldout600.json", "sixth round's final code")):
+                     ("diagnose_testbench_loop_heldout600_round6.json", "sixth round's final code"),
+                     ("diagnose_testbench_loop_heldout600.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout700_round6.json", "sixth round's final code (commit c5bd003)"),
+                     ("diagnose_testbench_loop_heldout700.json", "seventh round's final code")):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
@@ -175,21 +183,24 @@ def test_readme_testbench_counts_are_the_measured_ones():
         lo = int(m.group(1)) if m else 100
         assert {r["k"] for r in h["rows"]} <= set(range(lo, lo + 100))
     # the ambiguity table of the open-loop and closed-loop families, fourth round's JSON and this one
-    for f in ("diagnose_testbench_round4.json", "diagnose_testbench_round5.json", "diagnose_testbench.json"):
+    for f in ("diagnose_testbench_round4.json", "diagnose_testbench_round5.json", "diagnose_testbench_round6.json",
+              "diagnose_testbench.json"):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         for fam in ("testbench", "loop"):
             assert mod.ambiguity_line(f"{fam} family of `{f}`", h["per_family"][fam]) in readme, (f, fam)
-    # the sixth round's table of the "unexplained" verdict: every family / block, fifth round's JSON and this one
+    # the sixth and seventh rounds' tables of the "unexplained" verdict: every family / block, the fifth, sixth and
+    # seventh rounds' JSONs (specs 700-799: the sixth and seventh)
     for base, fams in (("diagnose_testbench", ("testbench", "loop", "synth/generic", "synth/irb140")),
-                       *((f"diagnose_testbench_loop_heldout{n}", (None,)) for n in ("", "200", "300", "400", "500", "600"))):
-        for f in (base + "_round5.json", base + ".json"):
+                       *((f"diagnose_testbench_loop_heldout{n}", (None,)) for n in ("", "200", "300", "400", "500", "600", "700"))):
+        for f in ((base + "_round5.json",) if not base.endswith("700") else ()) + (base + "_round6.json", base + ".json"):
             h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
             for fam in fams:
                 line = (mod.unexplained_line(f"{fam} family of `{f}`", h["per_family"][fam]) if fam
                         else mod.unexplained_line(f"`{f}`", h))
                 assert line in readme, line
-    # the third, fourth and fifth rounds' JSONs: their testbench rows
-    for f in ("diagnose_testbench_round3.json", "diagnose_testbench_round4.json", "diagnose_testbench_round5.json"):
+    # the third to sixth rounds' JSONs: their testbench rows
+    for f in ("diagnose_testbench_round3.json", "diagnose_testbench_round4.json", "diagnose_testbench_round5.json",
+              "diagnose_testbench_round6.json"):
         r3 = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         t3 = r3["per_family"]["testbench"]
         assert (f"(testbench family of `{f}`) | {t3['correct']} | {t3['wrong_names']} | "
