@@ -25,7 +25,8 @@ import drake_est.diagnose.competition as comp
 import drake_est.diagnose.detectors as det
 from drake_est.diagnose.quantization import torque_step  # noqa: F401  (re-exported)
 from drake_est.diagnose.multilog import energy_fn, log_ids, per_log_offsets
-from drake_est.diagnose.nominal import OUTLIER_MAD, block_index, nominal_columns, nominal_names, prepare
+from drake_est.diagnose.nominal import (OUTLIER_MAD, block_index, nominal_columns, nominal_names, prepare,
+                                        robust_scale)
 from drake_est.metrics import metrics_table
 from drake_est.regression import ridge_solve
 
@@ -963,8 +964,10 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
             for j, jd in prep.joints.items():
                 e = jd.y - fit.pred[j]
                 med = np.median(e)
-                mad = 1.4826 * np.median(np.abs(e - med))
-                bad = np.abs(e - med) > OUTLIER_MAD * max(mad, 1e-12)
+                step = prep.meta.setdefault("tau_step", {}).get(j)
+                if step is None:
+                    step = prep.meta["tau_step"][j] = torque_step(jd.tau)
+                bad = np.abs(e - med) > OUTLIER_MAD * robust_scale(e, step)
                 if bad.any():
                     new += int(bad.sum())
                     jd.counts["outliers"] = int(jd.counts.get("outliers", 0) + bad.sum())

@@ -271,12 +271,24 @@ def _own_load_basis(qj):
     return np.column_stack([np.ones_like(qj), np.sin(qj), np.cos(qj)])
 
 
-def _robust_lstsq(X, y):
-    """Least squares, refitted once without the 6-MAD outliers of the first fit. Returns (coef, inlier mask)."""
+def robust_scale(e, step: float = 0.0) -> float:
+    """The robust noise scale of a residual for the outlier screens: 1.4826 times the median absolute deviation,
+    at least the standard deviation of a rounding error, step / sqrt(12), when the torque is quantized with
+    ``step`` (:func:`~drake_est.diagnose.quantization.torque_step`).  A coarse ADC whose input barely moves
+    between steps leaves most residuals on one level: the MAD is then a small fraction of a step, and every sample
+    one step off (8 % of a log in closed-loop spec 746) would be screened as an outlier."""
+    e = np.asarray(e, float)
+    med = np.median(e)
+    return max(1.4826 * float(np.median(np.abs(e - med))), float(step) / np.sqrt(12.0), 1e-12)
+
+
+def _robust_lstsq(X, y, step: float = 0.0):
+    """Least squares, refitted once without the 6-MAD outliers of the first fit (:func:`robust_scale`, floored at the
+    rounding noise of a torque quantized with ``step``). Returns (coef, inlier mask)."""
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
     e = y - X @ coef
     med = np.median(e)
-    ok = np.abs(e - med) <= OUTLIER_MAD * 1.4826 * max(np.median(np.abs(e - med)), 1e-12)
+    ok = np.abs(e - med) <= OUTLIER_MAD * robust_scale(e, step)
     coef, *_ = np.linalg.lstsq(X[ok], y[ok], rcond=None)
     return coef, ok
 
@@ -435,6 +447,8 @@ def select_coupled_rigid_body(j, q, v, a, tau, idx_moving, idx_steady, t, others
     Returns ``(torque, info)``: the coupled torque over the whole log (zeros when nothing is selected) and
     {"groups": [...], "columns": [...], "coef": [...], "inertia": J, "constant": c0, "constant_se": its standard
     error, "constant_kept": bool}."""
+    from drake_est.diagnose.quantization import torque_step
+    step = torque_step(tau)     # outlier screens floored at the rounding noise (robust_scale)
     N = q[j].size
     groups = coupled_rigid_body_groups(j, q, v, a, others)
     L = _own_load_basis(q[j])
@@ -448,7 +462,7 @@ def select_coupled_rigid_body(j, q, v, a, tau, idx_moving, idx_steady, t, others
     C_rest = np.hstack([C for _, C in rest.values()]) if rest else np.zeros((N, 0))
     X0 = np.column_stack([a[j][idx], fric[idx], L[idx], C_rest[idx]])
     chosen1, X = _forward_select(X0, tau[idx], own, idx, t, alpha)
-    coef, _ = _robust_lstsq(X, tau[idx])
+    coef, _ = _robust_lstsq(X, tau[idx], step)
     J = float(coef[0])
     tau_c = np.zeros(N)
     names, beta_all = [], []
@@ -477,7 +491,7 @@ def select_coupled_rigid_body(j, q, v, a, tau, idx_moving, idx_steady, t, others
     chosen2, X = _forward_select(X0, y, ortho, idx, t, alpha)
     if chosen2:
         U = np.hstack([ortho[g][1] for g in chosen2])
-        coef, ok = _robust_lstsq(X, y)
+        coef, ok = _robust_lstsq(X, y, step)
         beta = coef[X0.shape[1]:]
         tau_c += U @ beta
         # the constant part of the selected terms (what ortho_rb keeps beyond ortho, one number per column): kept
@@ -569,6 +583,15 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
             rb = np.zeros(log.n_samples)
             rb[union] = ID[:, prep.robot_cols[j]]
             rb_all[j] = rb
+    from drake_est.diagnose.quantization import torque_step
+
+    def tau_step(j):
+        """The joint's torque quantization step (0 when not on a grid), kept in ``prep.meta["tau_step"]``."""
+        steps = prep.meta.setdefault("tau_step", {})
+        if j not in steps:
+            steps[j] = torque_step(log.tau[:, first[j][0]])
+        return steps[j]
+
     for j, (c, q, v, a, rows, counts, thr) in cand.items():
         rb = rb_all.get(j)
         if rb is None:
@@ -602,7 +625,7 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
             else:
                 X = np.column_stack([a[idx], v[idx], np.sign(v[idx])] + _load_nuisance(q[idx]))
                 # robust: two passes, the second without 6-MAD outliers
-                coef, _ = _robust_lstsq(X, log.tau[idx, c])
+                coef, _ = _robust_lstsq(X, log.tau[idx, c], tau_step(j))
                 J = float(coef[0])
             counts["inertia"] = J
             rb = J * a + tau_c
@@ -610,13 +633,13 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
         if meta is not None:
             jd.gear_ratio = float(meta.gear_ratios[j - 1])
         jd.counts["thresholds"] = thr
-        # robust outlier screen on the nominal residual (fit on all used rows, MAD scale)
+        # robust outlier screen on the nominal residual (fit on all used rows, MAD scale floored at the rounding
+        # noise of a quantized torque)
         X = nominal_columns(jd, kind)
         coef, *_ = np.linalg.lstsq(X, jd.y, rcond=None)
         r = jd.y - X @ coef
         med = np.median(r)
-        mad = 1.4826 * np.median(np.abs(r - med))
-        bad = np.abs(r - med) > OUTLIER_MAD * max(mad, 1e-12)
+        bad = np.abs(r - med) > OUTLIER_MAD * robust_scale(r, tau_step(j))
         jd.counts["outliers"] = int(bad.sum())
         jd.rows = rows[~bad]
         jd.train, jd.val = block_split(t, jd.rows)
