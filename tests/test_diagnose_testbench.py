@@ -173,8 +173,14 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout600_round5.json", "fifth round's final code (commit cd0d332)"),
                      ("diagnose_testbench_loop_heldout600_round6.json", "sixth round's final code"),
                      ("diagnose_testbench_loop_heldout600.json", "seventh round's final code"),
-                     ("diagnose_testbench_loop_heldout700_round6.json", "sixth round's final code (commit c5bd003)"),
-                     ("diagnose_testbench_loop_heldout700.json", "seventh round's final code")):
+                     ("diagnose_testbench_loop_heldout700_round6.json",
+                      "700-799, sixth round's final code (commit c5bd003)"),
+                     ("diagnose_testbench_loop_heldout700_round7_first.json",
+                      "700-799, seventh round's first code (commit 1578b1e)"),
+                     ("diagnose_testbench_loop_heldout700.json", "700-799, seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout800_round7_first.json",
+                      "800-899, seventh round's first code (commit 1578b1e)"),
+                     ("diagnose_testbench_loop_heldout800.json", "800-899, seventh round's final code")):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
@@ -191,8 +197,11 @@ def test_readme_testbench_counts_are_the_measured_ones():
     # the sixth and seventh rounds' tables of the "unexplained" verdict: every family / block, the fifth, sixth and
     # seventh rounds' JSONs (specs 700-799: the sixth and seventh)
     for base, fams in (("diagnose_testbench", ("testbench", "loop", "synth/generic", "synth/irb140")),
-                       *((f"diagnose_testbench_loop_heldout{n}", (None,)) for n in ("", "200", "300", "400", "500", "600", "700"))):
-        for f in ((base + "_round5.json",) if not base.endswith("700") else ()) + (base + "_round6.json", base + ".json"):
+                       *((f"diagnose_testbench_loop_heldout{n}", (None,)) for n in ("", "200", "300", "400", "500", "600", "700",
+                                                                                  "800"))):
+        runs = {"700": ("_round6", "_round7_first", ""), "800": ("_round7_first", "")}.get(base[-3:],
+                                                                                         ("_round5", "_round6", ""))
+        for f in (base + r + ".json" for r in runs):
             h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
             for fam in fams:
                 line = (mod.unexplained_line(f"{fam} family of `{f}`", h["per_family"][fam]) if fam
