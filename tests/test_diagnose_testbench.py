@@ -181,7 +181,9 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout800_round7_first.json",
                       "800-899, seventh round's first code (commit 1578b1e)"),
                      ("diagnose_testbench_loop_heldout800.json", "800-899, seventh round's final code"),
-                     ("diagnose_testbench_loop_heldout900.json", "900-999, seventh round's final code (commit 18b600f)")):
+                     ("diagnose_testbench_loop_heldout900.json", "900-999, seventh round's final code (commit 18b600f)"),
+                     ("diagnose_testbench_loop_heldout1000.json",
+                      "1000-1099, seventh round's final code (commit d76d1a0)")):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
@@ -199,8 +201,9 @@ def test_readme_testbench_counts_are_the_measured_ones():
     # seventh rounds' JSONs (specs 700-799: the sixth and seventh)
     for base, fams in (("diagnose_testbench", ("testbench", "loop", "synth/generic", "synth/irb140")),
                        *((f"diagnose_testbench_loop_heldout{n}", (None,)) for n in ("", "200", "300", "400", "500", "600", "700",
-                                                                                  "800", "900"))):
-        runs = {"700": ("_round6", "_round7_first", ""), "800": ("_round7_first", ""), "900": ("",)}.get(base[-3:],
+                                                                                  "800", "900", "1000"))):
+        runs = {"700": ("_round6", "_round7_first", ""), "800": ("_round7_first", ""), "900": ("",),
+                "000": ("",)}.get(base[-3:],
                                                                                          ("_round5", "_round6", ""))
         for f in (base + r + ".json" for r in runs):
             h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
