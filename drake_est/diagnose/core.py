@@ -25,8 +25,8 @@ import drake_est.diagnose.competition as comp
 import drake_est.diagnose.detectors as det
 from drake_est.diagnose.quantization import torque_step  # noqa: F401  (re-exported)
 from drake_est.diagnose.multilog import energy_fn, log_ids, per_log_offsets
-from drake_est.diagnose.nominal import (OUTLIER_MAD, block_index, nominal_columns, nominal_names, prepare,
-                                        robust_scale)
+from drake_est.diagnose.nominal import (OUTLIER_MAD, block_index, joint_tau_step, nominal_columns, nominal_names,
+                                        prepare, robust_scale)
 from drake_est.metrics import metrics_table
 from drake_est.regression import ridge_solve
 
@@ -440,9 +440,7 @@ def _above_quantization(prep, fit0, fit1, ext) -> bool:
     exceeds that bound, |S| (step / 2)^2, with a z > 4 margin for the noise (a one-sided bound, not tuned)."""
     for j in ext.cols:
         jd = prep.joints[j]
-        step = prep.meta.setdefault("tau_step", {}).get(j)
-        if step is None:
-            step = prep.meta["tau_step"][j] = torque_step(jd.tau)
+        step = joint_tau_step(prep, j)
         if step > 0:
             d = (fit1.pred[j] - fit0.pred[j])[jd.val]
             S = np.abs(d) > 0.5 * step
@@ -513,7 +511,8 @@ def _speed_confound(out, tst) -> dict:
     c = tst.get("confounded_with_speed")
     if not c:
         return out
-    if "position_law_given_speed_law" in c:
+    position = "position_law_given_speed_law" in c
+    if position:
         why = ("position and speed are confounded in this log: a free friction curve of each direction explains "
                "the held-out data as well as this position law (which adds nothing to it, "
                f"p = {c['position_law_given_speed_law']['p_value']:.2g}; the curve given the position law: "
@@ -525,7 +524,7 @@ def _speed_confound(out, tst) -> dict:
     was = list(out.get("ambiguous_with") or []) if out.get("ambiguous") else []
     out.update({"ambiguous": True, "ambiguous_with": was + [e for e in ["stribeck"] if e not in was],
                 "reason": "; ".join([r for r in [out.get("reason")] if r] + [why]), "confounded_with_speed": True})
-    if "position_law_given_speed_law" in c:
+    if position:
         out["position_vs_speed"] = True
     return out
 
@@ -538,7 +537,7 @@ def _within_quantization_step(prep, ext, e2, results) -> bool:
         return False
     f1, f2 = _fit_of(results, ext), _fit_of(results, e2)
     for j in set(ext.cols) & set(e2.cols):
-        step = prep.meta.get("tau_step", {}).get(j) or 0.0
+        step = joint_tau_step(prep, j)
         jd = prep.joints[j]
         d = (f1.pred[j] - f2.pred[j])[jd.val]
         if step > 0 and float(np.sqrt(np.mean(d ** 2))) < step:
@@ -610,49 +609,19 @@ def _train_rss(prep, fit, j) -> float:
     return float(e @ e)
 
 
-def backfit_changes(prep, model, fit, sigma):
-    """Backfitting of accepted abrupt changes (Hastie & Tibshirani's backfitting, Ch. 7's change-point
-    search (7.8) as the smoother): a change time is found on the residual of the model at the time it is
-    accepted, where effects not yet in the model (e.g. a position-dependent friction) can pull it seconds
-    away.  Once later findings are in the model, each change time is searched again on its partial residual
-    (the current residual plus the change's own part) and the change moved there when that lowers the
-    training residual.  Returns ``(model, fit, moved)`` with ``moved`` a list of (joint, old, new) times."""
+def _backfit(prep, model, fit, sigma, effect, redetect):
+    """Backfitting of the accepted extensions of one ``effect`` (Hastie & Tibshirani): each is estimated again on its
+    partial residual (the current residual plus its own part), ``redetect(model, ext, jd, r_p)`` -> new extension or
+    None, and replaced when that lowers the training residual of its joint.  Returns ``(model, fit, moved)`` with
+    ``moved`` a list of (joint, old extension, new extension)."""
     moved = []
     for e in list(model.exts):
-        if e.effect != "abrupt_change" or e.shared:
+        if e.effect != effect or e.shared:
             continue
         j = e.joint
         jd = prep.joints[j]
         r_p = jd.y - fit.pred[j] + e.cols[j] @ model.coef_slices(fit, j)[e.effect]
-        drift = any(x.effect == "energy_dependent_friction" and x.joint == j for x in model.exts)
-        new = det.change_point(jd, r_p, smooth_alternative=drift, energy_cols=_energy_cols(model, j))
-        if new is None or new.spec["t_change"] == e.spec["t_change"]:
-            continue
-        m2 = Model(prep, [new if x is e else x for x in model.exts])
-        f2 = m2.fit(sigma)
-        if _train_rss(prep, f2, j) < _train_rss(prep, fit, j):
-            new.evidence["backfitted_from_t_change_s"] = float(e.spec["t_change"])
-            moved.append((j, float(e.spec["t_change"]), float(new.spec["t_change"]), e, new))
-            model, fit = m2, f2
-    return model, fit, moved
-
-
-def backfit_periodic(prep, model, fit, sigma):
-    """Backfitting of an accepted time-periodic disturbance (the change backfit's counterpart): its frequency and
-    harmonics were found on the residual of the model at the time it was accepted, where a larger effect not yet
-    in the model (a position friction, say) can bias the frequency and hide a harmonic; a harmonic left out moves
-    the axis at its frequency, biases the inertia of the closed-loop fit and is later taken for another effect.
-    Once later findings are in the model, the disturbance is estimated again on its partial residual
-    (:func:`~drake_est.diagnose.detectors.time_periodic_refit`) and replaced when that lowers the training
-    residual.  Returns ``(model, fit, moved)`` with ``moved`` a list of (joint, old extension, new extension)."""
-    moved = []
-    for e in list(model.exts):
-        if e.effect != "time_periodic_disturbance" or e.shared:
-            continue
-        j = e.joint
-        jd = prep.joints[j]
-        r_p = jd.y - fit.pred[j] + e.cols[j] @ model.coef_slices(fit, j)[e.effect]
-        new = det.time_periodic_refit(jd, r_p, e)
+        new = redetect(model, e, jd, r_p)
         if new is None:
             continue
         m2 = Model(prep, [new if x is e else x for x in model.exts])
@@ -661,6 +630,37 @@ def backfit_periodic(prep, model, fit, sigma):
             moved.append((j, e, new))
             model, fit = m2, f2
     return model, fit, moved
+
+
+def backfit_changes(prep, model, fit, sigma):
+    """Backfitting of accepted abrupt changes (:func:`_backfit`, Ch. 7's change-point search (7.8) as the smoother): a
+    change time is found on the residual of the model at the time it is accepted, where effects not yet in the
+    model (e.g. a position-dependent friction) can pull it seconds away.  Once later findings are in the model,
+    each change time is searched again on its partial residual and the change moved there when that lowers the
+    training residual.  Returns ``(model, fit, moved)`` with ``moved`` a list of (joint, old, new extension); the
+    new one's evidence holds ``backfitted_from_t_change_s``."""
+    def redetect(model, e, jd, r_p):
+        j = e.joint
+        drift = any(x.effect == "energy_dependent_friction" and x.joint == j for x in model.exts)
+        new = det.change_point(jd, r_p, smooth_alternative=drift, energy_cols=_energy_cols(model, j))
+        if new is None or new.spec["t_change"] == e.spec["t_change"]:
+            return None
+        new.evidence["backfitted_from_t_change_s"] = float(e.spec["t_change"])
+        return new
+
+    return _backfit(prep, model, fit, sigma, "abrupt_change", redetect)
+
+
+def backfit_periodic(prep, model, fit, sigma):
+    """Backfitting of an accepted time-periodic disturbance (:func:`_backfit`): its frequency and harmonics were found
+    on the residual of the model at the time it was accepted, where a larger effect not yet in the model (a position
+    friction, say) can bias the frequency and hide a harmonic; a harmonic left out moves the axis at its frequency,
+    biases the inertia of the closed-loop fit and is later taken for another effect.  Once later findings are in
+    the model, the disturbance is estimated again on its partial residual
+    (:func:`~drake_est.diagnose.detectors.time_periodic_refit`) and replaced when that lowers the training
+    residual.  Returns ``(model, fit, moved)`` with ``moved`` a list of (joint, old extension, new extension)."""
+    return _backfit(prep, model, fit, sigma, "time_periodic_disturbance",
+                    lambda model, e, jd, r_p: det.time_periodic_refit(jd, r_p, e))
 
 
 def backfit_inertia(prep, model, fit) -> dict:
@@ -914,23 +914,18 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
         fit = f1
         accepted.add((ext.effect, None if ext.shared else ext.joint))
         changed = set(prep.joints) if (ext.shared or model.shared_exts()) else set(ext.cols)
-        if ext.effect != "abrupt_change" and any(e.effect == "abrupt_change" for e in model.exts):
-            model, fit, moved = backfit_changes(prep, model, fit, sigma)
-            for j, _t_old, _t_new, old_ext, new_ext in moved:
+        periodic_moved = []
+        for effect, backfit in (("abrupt_change", backfit_changes), ("time_periodic_disturbance", backfit_periodic)):
+            if ext.effect == effect or not any(e.effect == effect for e in model.exts):
+                continue
+            model, fit, moved = backfit(prep, model, fit, sigma)
+            for j, old_ext, new_ext in moved:
                 for st in steps:
                     if st.ext is old_ext:
                         st.ext = new_ext
                 changed |= {j}
-        if ext.effect != "time_periodic_disturbance" and any(
-                e.effect == "time_periodic_disturbance" for e in model.exts):
-            model, fit, periodic_moved = backfit_periodic(prep, model, fit, sigma)
-            for j, old_ext, new_ext in periodic_moved:
-                for st in steps:
-                    if st.ext is old_ext:
-                        st.ext = new_ext
-                changed |= {j}
-        else:
-            periodic_moved = []
+            if effect == "time_periodic_disturbance":
+                periodic_moved = moved
         js = list(ext.cols)
         steps.append(Step(ext, tst, f1, _val_metrics(prep, f1, js), {j: _val_metrics(prep, f1, [j]) for j in js},
                           competition))
@@ -964,10 +959,7 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
             for j, jd in prep.joints.items():
                 e = jd.y - fit.pred[j]
                 med = np.median(e)
-                step = prep.meta.setdefault("tau_step", {}).get(j)
-                if step is None:
-                    step = prep.meta["tau_step"][j] = torque_step(jd.tau)
-                bad = np.abs(e - med) > OUTLIER_MAD * robust_scale(e, step)
+                bad = np.abs(e - med) > OUTLIER_MAD * robust_scale(e, joint_tau_step(prep, j))
                 if bad.any():
                     new += int(bad.sum())
                     jd.counts["outliers"] = int(jd.counts.get("outliers", 0) + bad.sum())

@@ -626,6 +626,17 @@ def _tp_basis(t, freqs):
     return np.hstack([np.ones((t.size, 1)), np.cos(W), np.sin(W)])
 
 
+def _tp_columns(t, freqs):
+    """The columns [cos 2 pi f_k t ..., sin 2 pi f_k t ...] of a time-periodic disturbance at times ``t``."""
+    W = 2 * np.pi * np.outer(t, np.asarray(freqs, float))
+    return np.hstack([np.cos(W), np.sin(W)])
+
+
+def _tp_names(n):
+    """Coefficient names of :func:`_tp_columns` for ``n`` frequencies (``a_cos``, ``a_sin`` for one)."""
+    return [f"a_cos_{i + 1}" for i in range(n)] + [f"a_sin_{i + 1}" for i in range(n)] if n > 1 else ["a_cos", "a_sin"]
+
+
 def _harmonics(tt, rt, f, freqs, h, skip=()):
     """``freqs`` (which hold the fundamental ``f`` [Hz]) with each harmonic 2f, 3f below 0.45 / h [Hz] added that
     lowers the residual ``rt`` at times ``tt`` by a partial F-test at p < :data:`HARMONIC_P`; harmonics within
@@ -685,10 +696,7 @@ def time_periodic_refit(jd, r_p, ext):
     freqs = _harmonics(tt, rt, f, [o * f for o in orders], h, skip)
     if len(freqs) == len(fr) and abs(f - f0) <= 1e-3 / T:
         return None
-    W = 2 * np.pi * np.outer(t, np.asarray(freqs))
-    C = np.hstack([np.cos(W), np.sin(W)])
-    names = ([f"a_cos_{i + 1}" for i in range(len(freqs))] + [f"a_sin_{i + 1}" for i in range(len(freqs))]
-             if len(freqs) > 1 else ["a_cos", "a_sin"])
+    C, names = _tp_columns(t, freqs), _tp_names(len(freqs))
     spec = {**ext.spec, "frequencies_hz": freqs}
     ev = {**ext.evidence, "frequency_hz": f, "harmonics_hz": freqs[1:], "refitted_from_frequency_hz": f0}
     return Extension("time_periodic_disturbance", jd.joint, {jd.joint: C}, names, spec, ev)
@@ -757,12 +765,8 @@ def time_periodic(jd, r, n_components=1, skip_motion_lines=True):
     # residual and is later taken for another effect
     freqs_h = _harmonics(tt, rt, f, [f], h)
     if len(freqs_h) > 1:
-        W = 2 * np.pi * np.outer(t, np.asarray(freqs_h))
-        C = np.hstack([np.cos(W), np.sin(W)])
+        C = _tp_columns(t, freqs_h)
     spec = {"effect": "time_periodic_disturbance", "frequencies_hz": freqs_h}
     ev = {"frequency_hz": f, "amplitude_train": amp, "harmonics_hz": freqs_h[1:],
           "speed_levels_rad_s": [float(x) for x in np.quantile(np.abs(v), [0.1, 0.5, 0.9])]}
-    names = [f"a_cos_{i + 1}" for i in range(len(freqs_h))] + [f"a_sin_{i + 1}" for i in range(len(freqs_h))]
-    if len(freqs_h) == 1:
-        names = ["a_cos", "a_sin"]
-    return Extension("time_periodic_disturbance", jd.joint, {jd.joint: C}, names, spec, ev)
+    return Extension("time_periodic_disturbance", jd.joint, {jd.joint: C}, _tp_names(len(freqs_h)), spec, ev)

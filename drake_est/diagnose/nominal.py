@@ -282,6 +282,16 @@ def robust_scale(e, step: float = 0.0) -> float:
     return max(1.4826 * float(np.median(np.abs(e - med))), float(step) / np.sqrt(12.0), 1e-12)
 
 
+def joint_tau_step(prep, j, tau=None) -> float:
+    """The quantization step of joint ``j``'s torque (``tau``, default the joint's; 0 when not on a grid,
+    :func:`~drake_est.diagnose.quantization.torque_step`), computed once and kept in ``prep.meta["tau_step"]``."""
+    steps = prep.meta.setdefault("tau_step", {})
+    if j not in steps:
+        from drake_est.diagnose.quantization import torque_step
+        steps[j] = torque_step(prep.joints[j].tau if tau is None else tau)
+    return steps[j]
+
+
 def _robust_lstsq(X, y, step: float = 0.0):
     """Least squares, refitted once without the 6-MAD outliers of the first fit (:func:`robust_scale`, floored at the
     rounding noise of a torque quantized with ``step``). Returns (coef, inlier mask)."""
@@ -583,15 +593,6 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
             rb = np.zeros(log.n_samples)
             rb[union] = ID[:, prep.robot_cols[j]]
             rb_all[j] = rb
-    from drake_est.diagnose.quantization import torque_step
-
-    def tau_step(j):
-        """The joint's torque quantization step (0 when not on a grid), kept in ``prep.meta["tau_step"]``."""
-        steps = prep.meta.setdefault("tau_step", {})
-        if j not in steps:
-            steps[j] = torque_step(log.tau[:, first[j][0]])
-        return steps[j]
-
     for j, (c, q, v, a, rows, counts, thr) in cand.items():
         rb = rb_all.get(j)
         if rb is None:
@@ -625,7 +626,7 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
             else:
                 X = np.column_stack([a[idx], v[idx], np.sign(v[idx])] + _load_nuisance(q[idx]))
                 # robust: two passes, the second without 6-MAD outliers
-                coef, _ = _robust_lstsq(X, log.tau[idx, c], tau_step(j))
+                coef, _ = _robust_lstsq(X, log.tau[idx, c], joint_tau_step(prep, j, log.tau[:, c]))
                 J = float(coef[0])
             counts["inertia"] = J
             rb = J * a + tau_c
@@ -639,7 +640,7 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
         coef, *_ = np.linalg.lstsq(X, jd.y, rcond=None)
         r = jd.y - X @ coef
         med = np.median(r)
-        bad = np.abs(r - med) > OUTLIER_MAD * robust_scale(r, tau_step(j))
+        bad = np.abs(r - med) > OUTLIER_MAD * robust_scale(r, joint_tau_step(prep, j, log.tau[:, c]))
         jd.counts["outliers"] = int(bad.sum())
         jd.rows = rows[~bad]
         jd.train, jd.val = block_split(t, jd.rows)

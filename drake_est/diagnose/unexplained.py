@@ -457,9 +457,8 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
         if r is not None:
             tests.append((j, "velocity_reversals", r))
     n_tests = max(len(tests), 1)
-    from drake_est.diagnose.quantization import torque_step
-    steps = {j: prep.meta.get("tau_step", {}).get(j, None) for j in prep.joints}
-    steps = {j: (torque_step(prep.joints[j].tau) if s is None else s) for j, s in steps.items()}
+    from drake_est.diagnose.nominal import joint_tau_step
+    steps = {j: joint_tau_step(prep, j) for j in prep.joints}
     var = {j: float(np.var((jd.y - fit.pred[j])[jd.val])) for j, jd in prep.joints.items()}
     for j, name, r in tests:
         if name == "velocity_reversals":
