@@ -277,12 +277,14 @@ def test_position_friction_confounded_with_a_speed_law_when_each_position_has_on
     assert comp.position_law_confounded(prep, model, fit, other, core.ALPHA, core.MIN_GAIN) is None
 
 
-def test_position_friction_that_a_speed_curve_explains_is_ambiguous_with_stribeck():
+def test_position_friction_that_a_speed_curve_explains_is_not_named_in_spec_165():
     """Loop spec 165 (250 Hz, point-to-point moves, Student-t noise, asymmetric Coulomb + a Lorentzian Stribeck law):
-    the Gaussian basis leaves a speed-shaped misfit that 16 position kernels take (2.5 % of the RMSE), named
-    ``ambiguous(position_dependent_friction|abrupt_change)``, neither of them planted.  A free friction curve of
-    each direction explains all the kernels do (and more), so the finding is also ambiguous with ``stribeck``, and
-    the next experiment passes the same positions at several speeds."""
+    the Gaussian basis leaves a speed-shaped misfit that 16 position kernels take (2.5 % of the RMSE), once named
+    ``ambiguous(position_dependent_friction|abrupt_change)``, neither of them planted, and in the seventh round also
+    ambiguous with ``stribeck`` (a free friction curve of each direction explains all the kernels do; the rule is
+    tested on its own above).  Since the eighth round the finding, accepted after the Stribeck law and the
+    asymmetric level with 2.5 % while the residual still holds structure, is set aside as not confirmed
+    (core.finding_not_confirmed), and what is named is planted."""
     import sys
     from pathlib import Path
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -294,10 +296,10 @@ def test_position_friction_that_a_speed_curve_explains_is_ambiguous_with_stribec
     log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
                           sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
-    pdf = [f for f in d["findings"] if f["effect"] == "position_dependent_friction"]
-    assert len(pdf) == 1, [f["effect"] for f in d["findings"]]
-    f = pdf[0]
-    assert f["status"] == "ambiguous" and "stribeck" in f["ambiguous_between"]
-    assert f["competition"]["position_vs_speed"] and "position and speed are confounded" in f["competition"]["reason"]
-    exp = [e for e in d["next_experiment"] if "position_dependent_friction" in e["reason"]]
-    assert exp and len(exp[0]["speeds"]) == 3 and "same positions" in exp[0]["experiment"]
+    assert not [f for f in d["findings"] if f["effect"] == "position_dependent_friction"]
+    aside = [r for r in d["set_aside"] if r["effect"] == "position_dependent_friction"]
+    assert aside and aside[0]["not_confirmed"] and aside[0]["heldout_rmse_reduction"] < core.MIN_GAIN_NOT_WHITE
+    planted = set(truth["effects"])
+    for f in d["findings"]:
+        assert set(f.get("ambiguous_between", [f["effect"]])) & planted, f["effect"]
+    assert d["unexplained"]

@@ -144,46 +144,60 @@ def test_readme_testbench_counts_are_the_measured_ones():
             f"{t2['null_logs_clean']} / {t2['null_logs']} |") in readme
     assert (f"{l2['correct']} / {l2['logs']} correct, {l2['wrong_names']} wrong names, {l2['missed']} missed"
             in " ".join(readme.split()))
-    # the out-of-sample loop specs 100-199, second round's code and this one's
+    # the loop blocks from 100 on, every round's run of each (the fresh blocks: also the code that first met them)
     import re
     for f, label in (("diagnose_testbench_loop_heldout_round2.json", "second round's code (commit 39da320)"),
                      ("diagnose_testbench_loop_heldout_round3.json", "third round's final code"),
                      ("diagnose_testbench_loop_heldout_round4.json", "fourth round's final code"),
                      ("diagnose_testbench_loop_heldout_round5.json", "fifth round's final code"),
                      ("diagnose_testbench_loop_heldout_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout_round7.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout200_round3.json", "third round's final code (commit 67c6825)"),
                      ("diagnose_testbench_loop_heldout200_round4.json", "fourth round's final code"),
                      ("diagnose_testbench_loop_heldout200_round5.json", "fifth round's final code"),
                      ("diagnose_testbench_loop_heldout200_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout200.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout200_round7.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout200.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout300_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout300_round5_first.json", "fifth round's first code (commit 4c422f1)"),
                      ("diagnose_testbench_loop_heldout300_round5.json", "fifth round's final code"),
                      ("diagnose_testbench_loop_heldout300_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout300.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout300_round7.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout300.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout400_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout400_round5.json", "fifth round's final code"),
                      ("diagnose_testbench_loop_heldout400_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout400.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout400_round7.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout400.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout500_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout500_round5.json", "fifth round's final code"),
                      ("diagnose_testbench_loop_heldout500_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout500.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout500_round7.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout500.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout600_round5.json", "fifth round's final code (commit cd0d332)"),
                      ("diagnose_testbench_loop_heldout600_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout600.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout600_round7.json", "seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout600.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout700_round6.json",
                       "700-799, sixth round's final code (commit c5bd003)"),
                      ("diagnose_testbench_loop_heldout700_round7_first.json",
                       "700-799, seventh round's first code (commit 1578b1e)"),
-                     ("diagnose_testbench_loop_heldout700.json", "700-799, seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout700_round7.json", "700-799, seventh round's final code"),
                      ("diagnose_testbench_loop_heldout800_round7_first.json",
                       "800-899, seventh round's first code (commit 1578b1e)"),
-                     ("diagnose_testbench_loop_heldout800.json", "800-899, seventh round's final code"),
-                     ("diagnose_testbench_loop_heldout900.json", "900-999, seventh round's final code (commit 18b600f)"),
-                     ("diagnose_testbench_loop_heldout1000.json",
-                      "1000-1099, seventh round's final code (commit d76d1a0)")):
+                     ("diagnose_testbench_loop_heldout800_round7.json", "800-899, seventh round's final code"),
+                     ("diagnose_testbench_loop_heldout900_round7.json",
+                      "900-999, seventh round's final code (commit 18b600f)"),
+                     ("diagnose_testbench_loop_heldout1000_round7.json",
+                      "1000-1099, seventh round's final code (commit d76d1a0)"),
+                     ("diagnose_testbench_loop_heldout1100_round7.json",
+                      "1100-1199, seventh round's final code (commit 7a28354)"),
+                     ("diagnose_testbench_loop_heldout1200_round8_first.json", "1200-1299, eighth round's first code"),
+                     ("diagnose_testbench_loop_heldout1300_round8_second.json",
+                      "1300-1399, eighth round's second code"),
+                     *((f"diagnose_testbench_loop_heldout{n}.json", f"{n}-{n + 99}, eighth round's final code")
+                       for n in range(700, 1500, 100))):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
@@ -193,27 +207,29 @@ def test_readme_testbench_counts_are_the_measured_ones():
         assert {r["k"] for r in h["rows"]} <= set(range(lo, lo + 100))
     # the ambiguity table of the open-loop and closed-loop families, fourth round's JSON and this one
     for f in ("diagnose_testbench_round4.json", "diagnose_testbench_round5.json", "diagnose_testbench_round6.json",
-              "diagnose_testbench.json"):
+              "diagnose_testbench_round7.json", "diagnose_testbench.json"):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         for fam in ("testbench", "loop"):
             assert mod.ambiguity_line(f"{fam} family of `{f}`", h["per_family"][fam]) in readme, (f, fam)
-    # the sixth and seventh rounds' tables of the "unexplained" verdict: every family / block, the fifth, sixth and
-    # seventh rounds' JSONs (specs 700-799: the sixth and seventh)
+    # the sixth to eighth rounds' tables of the "unexplained" verdict: every family / block, the fifth to eighth
+    # rounds' JSONs (the fresh blocks from 700 on: the runs each was given)
     for base, fams in (("diagnose_testbench", ("testbench", "loop", "synth/generic", "synth/irb140")),
-                       *((f"diagnose_testbench_loop_heldout{n}", (None,)) for n in ("", "200", "300", "400", "500", "600", "700",
-                                                                                  "800", "900", "1000"))):
-        runs = {"700": ("_round6", "_round7_first", ""), "800": ("_round7_first", ""), "900": ("",),
-                "000": ("",)}.get(base[-3:],
-                                                                                         ("_round5", "_round6", ""))
+                       *((f"diagnose_testbench_loop_heldout{n}", (None,))
+                         for n in ("", "200", "300", "400", "500", "600", "700", "800", "900", "1000", "1100", "1200",
+                                   "1300", "1400"))):
+        runs = {"700": ("_round6", "_round7_first", "_round7", ""), "800": ("_round7_first", "_round7", ""),
+                "900": ("_round7", ""), "1000": ("_round7", ""), "1100": ("_round7", ""), "1200": ("_round8_first", ""),
+                "1300": ("_round8_second", ""), "1400": ("",)}.get(base[len("diagnose_testbench_loop_heldout"):],
+                                                                  ("_round5", "_round6", "_round7", ""))
         for f in (base + r + ".json" for r in runs):
             h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
             for fam in fams:
                 line = (mod.unexplained_line(f"{fam} family of `{f}`", h["per_family"][fam]) if fam
                         else mod.unexplained_line(f"`{f}`", h))
                 assert line in readme, line
-    # the third to sixth rounds' JSONs: their testbench rows
+    # the third to seventh rounds' JSONs: their testbench rows
     for f in ("diagnose_testbench_round3.json", "diagnose_testbench_round4.json", "diagnose_testbench_round5.json",
-              "diagnose_testbench_round6.json"):
+              "diagnose_testbench_round6.json", "diagnose_testbench_round7.json"):
         r3 = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         t3 = r3["per_family"]["testbench"]
         assert (f"(testbench family of `{f}`) | {t3['correct']} | {t3['wrong_names']} | "

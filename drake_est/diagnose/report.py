@@ -420,7 +420,8 @@ def markdown(d: dict) -> str:
     if d.get("set_aside"):
         L += ["", "## Findings set aside (each finding is checked against the others)", ""]
         for r in d["set_aside"]:
-            L.append(f"- {r['effect']} (joint {r['joint']}): {r['reason']}; the search was run again without it")
+            where = f" (joint {r['joint']})" if r.get("joint") is not None else ""
+            L.append(f"- {r['effect']}{where}: {r['reason']}; the search was run again without it")
     if d.get("not_found"):
         L += ["", "## Candidates rejected in the last round", ""]
         for r in d["not_found"][:6]:

@@ -1,0 +1,66 @@
+"""A later finding is confirmed only with a gain the misfit cannot explain (core.finding_not_confirmed,
+core.MIN_GAIN_NOT_WHITE): when the final residual of its joint still holds structure, a finding accepted after
+another one on its joint that lowered the held-out RMSE by less than MIN_GAIN_NOT_WHITE in its round is set aside
+and the search run again.  The first finding of a joint keeps the usual tests."""
+from types import SimpleNamespace
+
+import pytest
+
+from drake_est.diagnose import core, diagnose
+from drake_est.diagnose.testbench_loop import generate
+
+
+def _step(effect, joint, reduction):
+    ext = SimpleNamespace(effect=effect, joint=joint, cols=[joint], shared=False)
+    return SimpleNamespace(ext=ext, test={"rmse_reduction": reduction})
+
+
+def test_the_weakest_finding_on_a_joint_with_structure_is_not_confirmed():
+    steps = [_step("stribeck", 1, 0.76), _step("abrupt_change", 1, 0.05), _step("position_dependent_load", 1, 0.10)]
+    unexplained = [{"joint": 1, "variable": "time_correlation"}, {"joint": 1, "variable": "velocity"}]
+    st, where = core.finding_not_confirmed(steps, unexplained)
+    assert st.ext.effect == "abrupt_change"
+    assert where == {1: ["time_correlation", "velocity"]}
+
+
+def test_no_structure_or_structure_on_another_joint_confirms_everything():
+    steps = [_step("stribeck", 1, 0.76), _step("abrupt_change", 1, 0.05)]
+    assert core.finding_not_confirmed(steps, []) is None
+    assert core.finding_not_confirmed(steps, [{"joint": 2, "variable": "position"}]) is None
+    # a large gain is confirmed whatever remains
+    assert core.finding_not_confirmed(steps[:1], [{"joint": 1, "variable": "position"}]) is None
+
+
+def test_the_first_finding_of_a_joint_keeps_the_usual_tests():
+    structure = [{"joint": 1, "variable": "jerk_excluded_samples"}, {"joint": 2, "variable": "time"}]
+    assert core.finding_not_confirmed([_step("motor_position_ripple", 1, 0.12)], structure) is None
+    # later on another joint is first there too
+    steps = [_step("motor_position_ripple", 1, 0.12), _step("abrupt_change", 2, 0.05)]
+    assert core.finding_not_confirmed(steps, structure) is None
+    st, _ = core.finding_not_confirmed(steps + [_step("stribeck", 2, 0.08)], structure)
+    assert st.ext.effect == "stribeck"
+
+
+@pytest.mark.parametrize("threshold", [0.04, 0.06])
+def test_the_threshold_decides(threshold):
+    steps = [_step("stribeck", 1, 0.5), _step("abrupt_change", 1, 0.05)]
+    got = core.finding_not_confirmed(steps, [{"joint": 1, "variable": "time"}], min_gain_not_white=threshold)
+    assert (got is None) == (threshold < 0.05)
+
+
+def test_a_small_time_periodic_finding_beside_a_ripple_is_set_aside():
+    """Closed-loop spec 948 of the benchmark (a motor-position ripple only, student-t noise): a 0.47 Hz
+    time-periodic disturbance lowered the held-out RMSE by 3 % after the ripple while the residual stayed
+    correlated in time.  It is set aside as not confirmed, the ripple stays, and report.json and report.md say why."""
+    # loop_cases(949)[948] of benchmarks/bench_diagnose_testbench.py
+    log, _ = generate({"motor_position_ripple": 1.0}, seed=3948, duration=120.0, sample_rate=1000.0,
+                      noise="student_t", noise_std=0.13582799905184845, check_visible=False)
+    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    assert [f["effect"] for f in d["findings"]] == ["motor_position_ripple"]
+    aside = [r for r in d["set_aside"] if r.get("not_confirmed")]
+    assert [r["effect"] for r in aside] == ["time_periodic_disturbance"]
+    assert aside[0]["heldout_rmse_reduction"] < core.MIN_GAIN_NOT_WHITE
+    assert "not confirmed" in aside[0]["reason"] and d["unexplained"]
+    from drake_est.diagnose.report import markdown
+    assert "- time_periodic_disturbance (joint 1): not confirmed" in markdown(d)
+
