@@ -10,9 +10,9 @@ from drake_est.diagnose import core, diagnose
 from drake_est.diagnose.testbench_loop import generate
 
 
-def _step(effect, joint, reduction):
+def _step(effect, joint, reduction, competition=None):
     ext = SimpleNamespace(effect=effect, joint=joint, cols=[joint], shared=False)
-    return SimpleNamespace(ext=ext, test={"rmse_reduction": reduction})
+    return SimpleNamespace(ext=ext, test={"rmse_reduction": reduction}, competition=dict(competition or {}))
 
 
 def test_the_weakest_finding_on_a_joint_with_structure_is_not_confirmed():
@@ -64,3 +64,41 @@ def test_a_small_time_periodic_finding_beside_a_ripple_is_set_aside():
     from drake_est.diagnose.report import markdown
     assert "- time_periodic_disturbance (joint 1): not confirmed" in markdown(d)
 
+
+
+def _rival(name, reduction, significant=True):
+    return {"runner_up": name, "runner_up_significant": significant, "runner_up_rmse_reduction": reduction,
+            "ambiguous": False}
+
+
+def test_a_later_finding_close_to_its_runner_up_is_ambiguous_with_it():
+    """core.mark_not_separated_under_misfit: 1 - (1 - 0.60) / (1 - 0.59) = 2.4 % < 15 %: ambiguous; a first
+    finding, a runner-up that is not significant, a clear separation or no structure: unchanged."""
+    structure = [{"joint": 1, "variable": "velocity"}]
+    first = _step("stribeck", 1, 0.65, _rival("energy_dependent_friction", 0.60))
+    close = _step("position_dependent_load", 1, 0.60, _rival("asymmetric_coulomb", 0.59))
+    marked = core.mark_not_separated_under_misfit([first, close], structure)
+    assert marked == [close] and first.competition["ambiguous"] is False
+    assert close.competition["ambiguous"] and close.competition["ambiguous_with"] == ["asymmetric_coulomb"]
+    assert close.competition["separation_from_runner_up"] == pytest.approx(1 - 0.40 / 0.41)
+    for c in (_rival("asymmetric_coulomb", 0.59, significant=False), _rival("asymmetric_coulomb", 0.30)):
+        st = _step("position_dependent_load", 1, 0.60, c)
+        assert core.mark_not_separated_under_misfit([first, st], structure) == []
+    st = _step("position_dependent_load", 1, 0.60, _rival("asymmetric_coulomb", 0.59))
+    assert core.mark_not_separated_under_misfit([first, st], []) == []
+
+
+def test_spec_1287_names_the_load_only_as_ambiguous_with_the_asymmetry():
+    """Closed-loop spec 1287 (loop_cases(1288)[1287]: an asymmetric Coulomb level and a Stribeck law, 100 Hz,
+    Student-t noise): after the Stribeck law a position load removes 60 % of the RMSE, mostly the constant an
+    asymmetric level also is, 1.8 % better than the asymmetry while the residual still depends on velocity and
+    time.  It is reported ambiguous with the asymmetry, not as a load."""
+    log, _ = generate({"asymmetric_coulomb": 1.0, "stribeck": 1.0}, seed=4287, duration=120.0, sample_rate=100.0,
+                      noise="student_t", noise_std=0.12315548087723906, check_visible=False)
+    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    names = {e for f in d["findings"] for e in f.get("ambiguous_between", [f["effect"]])}
+    assert {"asymmetric_coulomb", "stribeck"} <= names
+    for f in d["findings"]:
+        if f["effect"] == "position_dependent_load":
+            assert f["status"] == "ambiguous" and "asymmetric_coulomb" in f["ambiguous_between"]
+            assert f["competition"]["separation_from_runner_up"] < core.MIN_GAIN_NOT_WHITE

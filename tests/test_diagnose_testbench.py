@@ -196,8 +196,10 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout1200_round8_first.json", "1200-1299, eighth round's first code"),
                      ("diagnose_testbench_loop_heldout1300_round8_second.json",
                       "1300-1399, eighth round's second code"),
+                     ("diagnose_testbench_loop_heldout1400_round8_third.json",
+                      "1400-1499, eighth round's third code (commit 7a57b5a)"),
                      *((f"diagnose_testbench_loop_heldout{n}.json", f"{n}-{n + 99}, eighth round's final code")
-                       for n in range(700, 1500, 100))):
+                       for n in range(700, 1600, 100))):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
@@ -216,10 +218,11 @@ def test_readme_testbench_counts_are_the_measured_ones():
     for base, fams in (("diagnose_testbench", ("testbench", "loop", "synth/generic", "synth/irb140")),
                        *((f"diagnose_testbench_loop_heldout{n}", (None,))
                          for n in ("", "200", "300", "400", "500", "600", "700", "800", "900", "1000", "1100", "1200",
-                                   "1300", "1400"))):
+                                   "1300", "1400", "1500"))):
         runs = {"700": ("_round6", "_round7_first", "_round7", ""), "800": ("_round7_first", "_round7", ""),
                 "900": ("_round7", ""), "1000": ("_round7", ""), "1100": ("_round7", ""), "1200": ("_round8_first", ""),
-                "1300": ("_round8_second", ""), "1400": ("",)}.get(base[len("diagnose_testbench_loop_heldout"):],
+                "1300": ("_round8_second", ""), "1400": ("_round8_third", ""),
+                "1500": ("",)}.get(base[len("diagnose_testbench_loop_heldout"):],
                                                                   ("_round5", "_round6", "_round7", ""))
         for f in (base + r + ".json" for r in runs):
             h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])

@@ -474,7 +474,8 @@ def _competition(ext, tst, results, prep=None) -> dict:
     e2, t2 = rivals[0]
     margin = float(tst["score"] - t2["score"])
     out = {"runner_up": e2.effect, "runner_up_joint": int(e2.joint), "runner_up_score": float(t2["score"]),
-           "runner_up_significant": bool(t2["significant"]), "margin": margin}
+           "runner_up_significant": bool(t2["significant"]), "margin": margin,
+           "runner_up_rmse_reduction": None if t2.get("rmse_reduction") is None else float(t2["rmse_reduction"])}
     close, below_step = [], False
     for e, t in rivals:
         if t.get("below_quantization_step"):
@@ -909,19 +910,53 @@ def finding_not_confirmed(steps, unexplained, min_gain_not_white=MIN_GAIN_NOT_WH
     held-out RMSE reduction in its round is below ``min_gain_not_white`` while the final residual of one of its
     joints holds structure (``unexplained``, :func:`~drake_est.diagnose.unexplained.residual_structure`), as
     ``(step, joints with structure)``; None when there is none."""
+    weak = [(st.test["rmse_reduction"], k, st, where)
+            for k, (st, where) in enumerate(_later_on_structure(steps, unexplained))
+            if st.test["rmse_reduction"] < min_gain_not_white]
+    if not weak:
+        return None
+    _, _, st, where = min(weak, key=lambda w: (w[0], w[1]))
+    return st, where
+
+
+def _later_on_structure(steps, unexplained):
+    """(step, joints with structure) for every finding accepted after another one on its joint(s) while the final
+    residual of one of them holds structure (``unexplained``), in the order of acceptance."""
     where = {}
     for u in unexplained:
         where.setdefault(int(u["joint"]), []).append(u["variable"])
-    weak, seen = [], set()
-    for k, st in enumerate(steps):
+    out, seen = [], set()
+    for st in steps:
         js = {int(j) for j in st.ext.cols}
-        if (js & seen and st.test["rmse_reduction"] < min_gain_not_white and js & set(where)):
-            weak.append((st.test["rmse_reduction"], k, st))
+        if js & seen and js & set(where):
+            out.append((st, {j: where[j] for j in sorted(js & set(where))}))
         seen |= js
-    if not weak:
-        return None
-    _, _, st = min(weak, key=lambda w: (w[0], w[1]))
-    return st, {int(j): where[int(j)] for j in st.ext.cols if int(j) in where}
+    return out
+
+
+def mark_not_separated_under_misfit(steps, unexplained, min_gain_not_white=MIN_GAIN_NOT_WHITE) -> list:
+    """The runner-up counterpart of :func:`finding_not_confirmed`: a later finding on a joint whose final residual
+    holds structure must also predict the held-out data of its round better than its significant runner-up by
+    ``min_gain_not_white`` of the RMSE, 1 - (1 - r_winner) / (1 - r_runner_up) with r the RMSE reductions; one that
+    does not is marked ambiguous with the runner-up (its competition fields change in place).  Returns the marked
+    steps."""
+    marked = []
+    for st, where in _later_on_structure(steps, unexplained):
+        c = st.competition
+        r2 = c.get("runner_up_rmse_reduction")
+        if c.get("ambiguous") or not c.get("runner_up_significant") or r2 is None or r2 >= 1.0:
+            continue
+        sep = 1.0 - (1.0 - st.test["rmse_reduction"]) / (1.0 - r2)
+        if sep < min_gain_not_white:
+            st.competition = {**c, "ambiguous": True, "ambiguous_with": [c["runner_up"]],
+                              "separation_from_runner_up": float(sep),
+                              "reason": (f"{c['runner_up']} predicts the held-out data of the round within "
+                                         f"{100 * sep:.1f} % of the RMSE (< {100 * min_gain_not_white:g} %) while the "
+                                         "final residual still holds structure ("
+                                         + "; ".join(f"joint {j}: {', '.join(v)}" for j, v in where.items())
+                                         + "): not separated")}
+            marked.append(st)
+    return marked
 
 
 def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
@@ -1062,6 +1097,7 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         unexplained = residual_structure(prep, fit)
         weak = finding_not_confirmed(out[3], unexplained) if _confirm < MAX_NOT_CONFIRMED else None
         if weak is None:
+            mark_not_separated_under_misfit(out[3], unexplained)
             break
         st, where = weak
         blocked.add((st.ext.effect, None if st.ext.shared else st.ext.joint))
