@@ -910,13 +910,8 @@ def finding_not_confirmed(steps, unexplained, min_gain_not_white=MIN_GAIN_NOT_WH
     held-out RMSE reduction in its round is below ``min_gain_not_white`` while the final residual of one of its
     joints holds structure (``unexplained``, :func:`~drake_est.diagnose.unexplained.residual_structure`), as
     ``(step, joints with structure)``; None when there is none."""
-    weak = [(st.test["rmse_reduction"], k, st, where)
-            for k, (st, where) in enumerate(_later_on_structure(steps, unexplained))
-            if st.test["rmse_reduction"] < min_gain_not_white]
-    if not weak:
-        return None
-    _, _, st, where = min(weak, key=lambda w: (w[0], w[1]))
-    return st, where
+    weak = [sw for sw in _later_on_structure(steps, unexplained) if sw[0].test["rmse_reduction"] < min_gain_not_white]
+    return min(weak, key=lambda sw: sw[0].test["rmse_reduction"]) if weak else None
 
 
 def _later_on_structure(steps, unexplained):
@@ -928,10 +923,15 @@ def _later_on_structure(steps, unexplained):
     out, seen = [], set()
     for st in steps:
         js = {int(j) for j in st.ext.cols}
-        if js & seen and js & set(where):
-            out.append((st, {j: where[j] for j in sorted(js & set(where))}))
+        if js & seen and js & where.keys():
+            out.append((st, {j: where[j] for j in sorted(js & where.keys())}))
         seen |= js
     return out
+
+
+def _structure_text(where) -> str:
+    """``{joint: [variables]}`` of :func:`_later_on_structure` as report text."""
+    return "; ".join(f"joint {j}: {', '.join(v)}" for j, v in where.items())
 
 
 def mark_not_separated_under_misfit(steps, unexplained, min_gain_not_white=MIN_GAIN_NOT_WHITE) -> list:
@@ -952,9 +952,8 @@ def mark_not_separated_under_misfit(steps, unexplained, min_gain_not_white=MIN_G
                               "separation_from_runner_up": float(sep),
                               "reason": (f"{c['runner_up']} predicts the held-out data of the round within "
                                          f"{100 * sep:.1f} % of the RMSE (< {100 * min_gain_not_white:g} %) while the "
-                                         "final residual still holds structure ("
-                                         + "; ".join(f"joint {j}: {', '.join(v)}" for j, v in where.items())
-                                         + "): not separated")}
+                                         f"final residual still holds structure ({_structure_text(where)}): "
+                                         "not separated")}
             marked.append(st)
     return marked
 
@@ -1104,9 +1103,8 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         set_aside.append({
             "effect": st.ext.effect, "joint": int(st.ext.joint) if not st.ext.shared else None,
             "reason": (f"not confirmed: it lowered the held-out RMSE by {100 * st.test['rmse_reduction']:.1f} % "
-                       f"(< {100 * MIN_GAIN_NOT_WHITE:g} %) while the final residual still holds structure ("
-                       + "; ".join(f"joint {j}: {', '.join(v)}" for j, v in where.items())
-                       + "), which a candidate can soak up in part"),
+                       f"(< {100 * MIN_GAIN_NOT_WHITE:g} %) while the final residual still holds structure "
+                       f"({_structure_text(where)}), which a candidate can soak up in part"),
             "not_confirmed": True, "heldout_rmse_reduction": float(st.test["rmse_reduction"])})
         prep.meta.pop("payload_ext", None)
         out = _search(prep, max_findings, alpha, min_gain, blocked)

@@ -429,7 +429,7 @@ def _orthogonal_to(groups, B, Bi, idx, subtract=None):
     return out
 
 
-def select_coupled_rigid_body(j, q, v, a, tau, idx_moving, idx_steady, t, others, alpha=COUPLING_ALPHA):
+def select_coupled_rigid_body(j, q, v, a, tau, idx_moving, idx_steady, t, others, alpha=COUPLING_ALPHA, step=None):
     """The inertia J of a generic axis ``j`` that moves together with ``others``, and the coupled rigid-body
     terms (:func:`coupled_rigid_body_groups`) that the data identify (issue 16 item 6).
 
@@ -456,9 +456,12 @@ def select_coupled_rigid_body(j, q, v, a, tau, idx_moving, idx_steady, t, others
 
     Returns ``(torque, info)``: the coupled torque over the whole log (zeros when nothing is selected) and
     {"groups": [...], "columns": [...], "coef": [...], "inertia": J, "constant": c0, "constant_se": its standard
-    error, "constant_kept": bool}."""
-    from drake_est.diagnose.quantization import torque_step
-    step = torque_step(tau)     # outlier screens floored at the rounding noise (robust_scale)
+    error, "constant_kept": bool}.  ``step``: the quantization step of ``tau`` when known (default: computed,
+    :func:`~drake_est.diagnose.quantization.torque_step`); the outlier screens are floored at its rounding noise
+    (:func:`robust_scale`)."""
+    if step is None:
+        from drake_est.diagnose.quantization import torque_step
+        step = torque_step(tau)
     N = q[j].size
     groups = coupled_rigid_body_groups(j, q, v, a, others)
     L = _own_load_basis(q[j])
@@ -617,7 +620,8 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
                 # accelerating ones the filtered accelerations are least accurate, and 15-30 coupled columns
                 # fitted there carry that error into every sample
                 sel = rows[block_split(t, rows)[0]]
-                tau_c, info = select_coupled_rigid_body(j, qs, vs, as_, log.tau[:, c], idx, sel, t, others)
+                tau_c, info = select_coupled_rigid_body(j, qs, vs, as_, log.tau[:, c], idx, sel, t, others,
+                                                       step=joint_tau_step(prep, j, log.tau[:, c]))
             if info["groups"]:
                 prep.meta.setdefault("coupled_rigid_body", {})[j] = info
             if info["inertia"] is not None:
