@@ -25,7 +25,7 @@ import drake_est.diagnose.competition as comp
 import drake_est.diagnose.detectors as det
 from drake_est.diagnose.quantization import torque_step  # noqa: F401  (re-exported)
 from drake_est.diagnose.multilog import energy_fn, log_ids, per_log_offsets
-from drake_est.diagnose.nominal import (OUTLIER_MAD, block_index, joint_tau_step, nominal_columns, nominal_names,
+from drake_est.diagnose.nominal import (OUTLIER_MAD, OUTLIER_MAX_SHARE, block_index, joint_tau_step, nominal_columns, nominal_names,
                                         prepare, robust_scale)
 from drake_est.metrics import metrics_table
 from drake_est.regression import ridge_solve
@@ -1039,6 +1039,10 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
                 e = jd.y - fit.pred[j]
                 med = np.median(e)
                 bad = np.abs(e - med) > OUTLIER_MAD * robust_scale(e, joint_tau_step(prep, j))
+                if bad.mean() > OUTLIER_MAX_SHARE:
+                    # misfit the search has not explained, not outliers (see prepare)
+                    jd.counts["outlier_screen_after_extension_skipped"] = int(bad.sum())
+                    continue
                 if bad.any():
                     new += int(bad.sum())
                     jd.counts["outliers"] = int(jd.counts.get("outliers", 0) + bad.sum())

@@ -39,6 +39,9 @@ def n_blocks_for(duration: float) -> int:
     n = int(np.clip(np.ceil(duration / BLOCK_S), N_BLOCKS, MAX_BLOCKS))
     return n + (n % 2)
 OUTLIER_MAD = 6.0
+#: largest share of a joint's rows the nominal outlier screen may flag; above it the tails are structure the nominal
+#: model misses (e.g. one direction of an asymmetric Coulomb level), not outliers, and nothing is screened
+OUTLIER_MAX_SHARE = 0.05
 #: Savitzky-Golay window for velocities/accelerations computed from positions [s]
 DERIV_WINDOW_S = 0.1
 
@@ -645,6 +648,10 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
         r = jd.y - X @ coef
         med = np.median(r)
         bad = np.abs(r - med) > OUTLIER_MAD * robust_scale(r, joint_tau_step(prep, j, log.tau[:, c]))
+        if bad.mean() > OUTLIER_MAX_SHARE:
+            # that many are not outliers: removing them would remove the misfit the diagnosis is looking for
+            jd.counts["outlier_screen_skipped"] = int(bad.sum())
+            bad[:] = False
         jd.counts["outliers"] = int(bad.sum())
         jd.rows = rows[~bad]
         jd.train, jd.val = block_split(t, jd.rows)

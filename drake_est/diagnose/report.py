@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_est.diagnose.competition import ambiguous_rivals
-from drake_est.diagnose.nominal import n_blocks_for
+from drake_est.diagnose.nominal import OUTLIER_MAX_SHARE, n_blocks_for
 from drake_est.diagnose.multilog import across_logs_evidence, per_log_table
 
 EFFECT_TEXT = {
@@ -325,7 +325,11 @@ def markdown(d: dict) -> str:
     for j, c in da["excluded"].items():
         L.append(f"- joint {j}: {c.get('selected', 0)} samples selected by (9.9); excluded {c.get('near_zero_velocity', 0)} "
                  f"near zero velocity, {c.get('accelerating', 0)} accelerating, {c.get('outliers', 0)} outliers (> 6 MAD)"
-                 + (f", {c['thinned']} thinned" if c.get("thinned") else ""))
+                 + (f", {c['thinned']} thinned" if c.get("thinned") else "")
+                 + "".join(f" (the {when} screen was not applied: it flagged {c[key]} samples, more than "
+                           f"{100 * OUTLIER_MAX_SHARE:g} % of the rows, so the tails are misfit, not outliers)"
+                           for when, key in (("nominal", "outlier_screen_skipped"),
+                                             ("final", "outlier_screen_after_extension_skipped")) if c.get(key)))
     L += ["", f"Validation: {da['split']}.", "", "## What the simulation gets wrong", ""]
     nv = d["nominal"]["validation"]
     L.append(f"The nominal model ({d['nominal']['model']}) leaves a held-out RMSE of **{_num(nv['rmse'], '.4g')} {u}** "
