@@ -207,7 +207,7 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      *((f"diagnose_testbench_loop_heldout{n}_round8.json", f"{n}-{n + 99}, eighth round's final code")
                        for n in range(700, 1600, 100)),
                      *((f"diagnose_testbench_loop_heldout{n}.json", f"{n}-{n + 99}, ninth round's final code")
-                       for n in range(700, 1700, 100))):
+                       for n in range(700, 1800, 100))):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
@@ -226,13 +226,13 @@ def test_readme_testbench_counts_are_the_measured_ones():
     for base, fams in (("diagnose_testbench", ("testbench", "loop", "synth/generic", "synth/irb140")),
                        *((f"diagnose_testbench_loop_heldout{n}", (None,))
                          for n in ("", "200", "300", "400", "500", "600", "700", "800", "900", "1000", "1100", "1200",
-                                   "1300", "1400", "1500", "1600"))):
+                                   "1300", "1400", "1500", "1600", "1700"))):
         runs = {"700": ("_round6", "_round7_first", "_round7", "_round8", ""),
                 "800": ("_round7_first", "_round7", "_round8", ""), "900": ("_round7", "_round8", ""),
                 "1000": ("_round7", "_round8", ""), "1100": ("_round7", "_round8", ""),
                 "1200": ("_round8_first", "_round8", ""), "1300": ("_round8_second", "_round8", ""),
                 "1400": ("_round8_third", "_round8", ""), "1500": ("_round8", ""),
-                "1600": ("",)}.get(base[len("diagnose_testbench_loop_heldout"):],
+                "1600": ("",), "1700": ("",)}.get(base[len("diagnose_testbench_loop_heldout"):],
                                    ("_round5", "_round6", "_round7", "_round8", ""))
         for f in (base + r + ".json" for r in runs):
             h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
