@@ -93,6 +93,25 @@ def summarize(rows) -> dict:
     return out
 
 
+def markdown_rows(summary) -> list:
+    """Rows of the docs' table (docs/readme/diagnose_testbench.md, "Unexplained at low sample rates") for the
+    testbench rates of a summary: rate, null logs with ``unexplained`` (reversal test / any test), the smallest
+    null p of the reversal test, out-of-vocabulary logs unexplained with no name (per kind)."""
+    out = []
+    for key, b in summary["by_rate"].items():
+        gen, rate = key.split("@")
+        if gen != "testbench":
+            continue
+        rows = [r for r in summary["rows"] if r["generator"] == gen and f"{r['rate']:g}Hz" == rate]
+        kinds = sorted({r["kind"] for r in rows if r["kind"] != "null"})
+        per = ", ".join(f"{k} {sum(bool(r['unexplained']) and not r['findings'] for r in rows if r['kind'] == k)}/"
+                        f"{sum(r['kind'] == k for r in rows)}" for k in kinds)
+        pmin = "n/a" if b["null_reversal_p_min"] is None else f"{b['null_reversal_p_min']:.2g}"
+        out.append(f"| {rate[:-2]} Hz | {b['null_reversal_flags']}/{b['null_logs']} / {b['null_unexplained']}/{b['null_logs']} | "
+                   f"{pmin} | {b['oov_unexplained_no_name']}/{b['oov_logs']} ({per}) |")
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--null", type=int, default=60)
@@ -100,7 +119,13 @@ def main(argv=None):
     ap.add_argument("--rates", default="10")
     ap.add_argument("--synth", type=int, default=0)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--markdown", default=None, help="comma-separated JSONs of earlier runs: print the docs' table rows")
     a = ap.parse_args(argv)
+    if a.markdown:
+        import json
+        for f in a.markdown.split(","):
+            print("\n".join(markdown_rows(json.load(open(f)))))
+        return None
     rates = tuple(float(x) for x in a.rates.split(","))
     out = run(a.null, a.oov, rates, a.synth)
     import json

@@ -279,3 +279,23 @@ def test_summarize_counts_per_family():
     assert mod._label({"stribeck": 1, "_vs": 0.1}, {"stribeck": "tiny"}) == "none (not visible: stribeck)"
     table = mod.readme_table(s)
     assert table[-1].startswith("| all | 4 | 3 | 1 | 1 |")
+
+
+def test_lowrate_unexplained_table_is_the_measured_one():
+    """The docs' table of the "unexplained" verdict by sample rate holds the rows that
+    benchmarks/bench_unexplained_lowrate.py --markdown prints for the kept JSONs."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("bench_lr", root / "benchmarks" / "bench_unexplained_lowrate.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    lines = []
+    for f in ("unexplained_lowrate_10hz.json", "unexplained_lowrate_50_250hz.json"):
+        lines += mod.markdown_rows(json.loads((root / "benchmarks" / "results" / f).read_text()))
+    assert len(lines) == 3
+    for line in lines:
+        assert line in doc, line
