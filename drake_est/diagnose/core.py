@@ -476,7 +476,7 @@ def _competition(ext, tst, results, prep=None) -> dict:
     out = {"runner_up": e2.effect, "runner_up_joint": int(e2.joint), "runner_up_score": float(t2["score"]),
            "runner_up_significant": bool(t2["significant"]), "margin": margin,
            "runner_up_rmse_reduction": None if t2.get("rmse_reduction") is None else float(t2["rmse_reduction"])}
-    close, below_step = [], False
+    close, below_step, below_min_gain = [], False, {}
     for e, t in rivals:
         if t.get("below_quantization_step"):
             # a rival held back only by the quantization guard (its change of the prediction stays within half an
@@ -495,8 +495,16 @@ def _competition(ext, tst, results, prep=None) -> dict:
             continue
         if not t["significant"]:
             continue
+        sep = _separation(tst, t)
         if float(tst["score"] - t["score"]) < AMBIGUITY_MARGIN:
             close.append(e.effect)
+        elif sep is not None and sep < MIN_GAIN:
+            # every finding must lower the held-out RMSE by MIN_GAIN; a rival that predicts within MIN_GAIN of the
+            # winner's RMSE is not separated from it, however many samples make the score margin large (an
+            # asymmetric Coulomb level is a constant torque while moving, and so is a position load that hardly
+            # varies over the visited range)
+            close.append(e.effect)
+            below_min_gain[e.effect] = float(sep)
         elif prep is not None and _within_quantization_step(prep, ext, e, results):
             close.append(e.effect)
             below_step = True
@@ -516,7 +524,23 @@ def _competition(ext, tst, results, prep=None) -> dict:
         out["ambiguous_with"] = close
     if below_step:
         out["separated_below_quantization_step"] = True
+    if below_min_gain:
+        out["separation_below_min_gain"] = below_min_gain
+        if "reason" not in out:
+            name, sep = next(iter(below_min_gain.items()))
+            out["reason"] = (f"{name} predicts the held-out data of the round within {100 * sep:.2g} % of the RMSE "
+                             f"(< {100 * MIN_GAIN:g} %, the gain every finding must show): not separated")
     return _speed_confound(out, tst)
+
+
+def _separation(tst, t):
+    """How much better the winner (test ``tst``) predicts the held-out data of its round than a rival (test
+    ``t``): 1 - (1 - r_winner) / (1 - r_rival), r the RMSE reductions against the model of the round (None when
+    one is missing)."""
+    r_w, r_e = tst.get("rmse_reduction"), t.get("rmse_reduction")
+    if r_w is None or r_e is None or r_e >= 1.0:
+        return None
+    return 1.0 - (1.0 - float(r_w)) / (1.0 - float(r_e))
 
 
 def _speed_confound(out, tst) -> dict:
