@@ -43,12 +43,16 @@ def test_rare_spikes_are_still_screened():
     assert jd.counts["outliers"] >= 1
 
 
-def test_spec_1501_asymmetric_level_is_named_and_the_report_says_the_screen_was_not_applied():
+def test_spec_1501_asymmetric_level_leads_and_the_report_says_the_screen_was_not_applied():
     log, _ = _spec_1501()
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     named = set()
     for f in d["findings"]:
         named |= set(f.get("ambiguous_between", [f["effect"]]))
-    assert "asymmetric_coulomb" in named and "position_dependent_load" not in named, d["findings"]
+    # the asymmetry is a candidate again and leads; a position load that predicts within MIN_GAIN of it stands beside it
+    # (core._competition), but is never named alone
+    first = d["findings"][0]
+    assert first["effect"] == "asymmetric_coulomb", d["findings"]
+    assert named <= {"asymmetric_coulomb", "position_dependent_load"}
     from drake_est.diagnose.report import markdown
     assert "the nominal screen was not applied" in markdown(d)

@@ -153,6 +153,7 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout_round6.json", "sixth round's final code"),
                      ("diagnose_testbench_loop_heldout_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout_round8.json", "eighth round's final code"),
+                     ("diagnose_testbench_loop_heldout_round9_first.json", "ninth round's first code"),
                      ("diagnose_testbench_loop_heldout.json", "ninth round's final code"),
                      ("diagnose_testbench_loop_heldout200_round3.json", "third round's final code (commit 67c6825)"),
                      ("diagnose_testbench_loop_heldout200_round4.json", "fourth round's final code"),
@@ -160,6 +161,7 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout200_round6.json", "sixth round's final code"),
                      ("diagnose_testbench_loop_heldout200_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout200_round8.json", "eighth round's final code"),
+                     ("diagnose_testbench_loop_heldout200_round9_first.json", "ninth round's first code"),
                      ("diagnose_testbench_loop_heldout200.json", "ninth round's final code"),
                      ("diagnose_testbench_loop_heldout300_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout300_round5_first.json", "fifth round's first code (commit 4c422f1)"),
@@ -167,23 +169,27 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout300_round6.json", "sixth round's final code"),
                      ("diagnose_testbench_loop_heldout300_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout300_round8.json", "eighth round's final code"),
+                     ("diagnose_testbench_loop_heldout300_round9_first.json", "ninth round's first code"),
                      ("diagnose_testbench_loop_heldout300.json", "ninth round's final code"),
                      ("diagnose_testbench_loop_heldout400_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout400_round5.json", "fifth round's final code"),
                      ("diagnose_testbench_loop_heldout400_round6.json", "sixth round's final code"),
                      ("diagnose_testbench_loop_heldout400_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout400_round8.json", "eighth round's final code"),
+                     ("diagnose_testbench_loop_heldout400_round9_first.json", "ninth round's first code"),
                      ("diagnose_testbench_loop_heldout400.json", "ninth round's final code"),
                      ("diagnose_testbench_loop_heldout500_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout500_round5.json", "fifth round's final code"),
                      ("diagnose_testbench_loop_heldout500_round6.json", "sixth round's final code"),
                      ("diagnose_testbench_loop_heldout500_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout500_round8.json", "eighth round's final code"),
+                     ("diagnose_testbench_loop_heldout500_round9_first.json", "ninth round's first code"),
                      ("diagnose_testbench_loop_heldout500.json", "ninth round's final code"),
                      ("diagnose_testbench_loop_heldout600_round5.json", "fifth round's final code (commit cd0d332)"),
                      ("diagnose_testbench_loop_heldout600_round6.json", "sixth round's final code"),
                      ("diagnose_testbench_loop_heldout600_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout600_round8.json", "eighth round's final code"),
+                     ("diagnose_testbench_loop_heldout600_round9_first.json", "ninth round's first code"),
                      ("diagnose_testbench_loop_heldout600.json", "ninth round's final code"),
                      ("diagnose_testbench_loop_heldout700_round6.json",
                       "700-799, sixth round's final code (commit c5bd003)"),
@@ -206,8 +212,10 @@ def test_readme_testbench_counts_are_the_measured_ones():
                       "1400-1499, eighth round's third code (commit 7a57b5a)"),
                      *((f"diagnose_testbench_loop_heldout{n}_round8.json", f"{n}-{n + 99}, eighth round's final code")
                        for n in range(700, 1600, 100)),
+                     *((f"diagnose_testbench_loop_heldout{n}_round9_first.json", f"{n}-{n + 99}, ninth round's first code")
+                       for n in range(700, 1900, 100)),
                      *((f"diagnose_testbench_loop_heldout{n}.json", f"{n}-{n + 99}, ninth round's final code")
-                       for n in range(700, 1800, 100))):
+                       for n in range(700, 2000, 100))):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
@@ -217,7 +225,8 @@ def test_readme_testbench_counts_are_the_measured_ones():
         assert {r["k"] for r in h["rows"]} <= set(range(lo, lo + 100))
     # the ambiguity table of the open-loop and closed-loop families, fourth round's JSON and this one
     for f in ("diagnose_testbench_round4.json", "diagnose_testbench_round5.json", "diagnose_testbench_round6.json",
-              "diagnose_testbench_round7.json", "diagnose_testbench_round8.json", "diagnose_testbench.json"):
+              "diagnose_testbench_round7.json", "diagnose_testbench_round8.json", "diagnose_testbench_round9_first.json",
+              "diagnose_testbench.json"):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         for fam in ("testbench", "loop"):
             assert mod.ambiguity_line(f"{fam} family of `{f}`", h["per_family"][fam]) in readme, (f, fam)
@@ -226,14 +235,15 @@ def test_readme_testbench_counts_are_the_measured_ones():
     for base, fams in (("diagnose_testbench", ("testbench", "loop", "synth/generic", "synth/irb140")),
                        *((f"diagnose_testbench_loop_heldout{n}", (None,))
                          for n in ("", "200", "300", "400", "500", "600", "700", "800", "900", "1000", "1100", "1200",
-                                   "1300", "1400", "1500", "1600", "1700"))):
-        runs = {"700": ("_round6", "_round7_first", "_round7", "_round8", ""),
-                "800": ("_round7_first", "_round7", "_round8", ""), "900": ("_round7", "_round8", ""),
-                "1000": ("_round7", "_round8", ""), "1100": ("_round7", "_round8", ""),
-                "1200": ("_round8_first", "_round8", ""), "1300": ("_round8_second", "_round8", ""),
-                "1400": ("_round8_third", "_round8", ""), "1500": ("_round8", ""),
-                "1600": ("",), "1700": ("",)}.get(base[len("diagnose_testbench_loop_heldout"):],
-                                   ("_round5", "_round6", "_round7", "_round8", ""))
+                                   "1300", "1400", "1500", "1600", "1700", "1800", "1900"))):
+        runs = {"700": ("_round6", "_round7_first", "_round7", "_round8"),
+                "800": ("_round7_first", "_round7", "_round8"), "900": ("_round7", "_round8"),
+                "1000": ("_round7", "_round8"), "1100": ("_round7", "_round8"),
+                "1200": ("_round8_first", "_round8"), "1300": ("_round8_second", "_round8"),
+                "1400": ("_round8_third", "_round8"), "1500": ("_round8",),
+                "1600": (), "1700": (), "1800": (), "1900": ()}.get(base[len("diagnose_testbench_loop_heldout"):],
+                                   ("_round5", "_round6", "_round7", "_round8")) + \
+            (("",) if base.endswith("1900") else ("_round9_first", ""))
         for f in (base + r + ".json" for r in runs):
             h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
             for fam in fams:
@@ -242,7 +252,8 @@ def test_readme_testbench_counts_are_the_measured_ones():
                 assert line in readme, line
     # the third to seventh rounds' JSONs: their testbench rows
     for f in ("diagnose_testbench_round3.json", "diagnose_testbench_round4.json", "diagnose_testbench_round5.json",
-              "diagnose_testbench_round6.json", "diagnose_testbench_round7.json", "diagnose_testbench_round8.json"):
+              "diagnose_testbench_round6.json", "diagnose_testbench_round7.json", "diagnose_testbench_round8.json",
+              "diagnose_testbench_round9_first.json"):
         r3 = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         t3 = r3["per_family"]["testbench"]
         assert (f"(testbench family of `{f}`) | {t3['correct']} | {t3['wrong_names']} | "
