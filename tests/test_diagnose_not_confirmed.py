@@ -92,7 +92,8 @@ def test_spec_1287_names_the_load_only_as_ambiguous_with_the_asymmetry():
     """Closed-loop spec 1287 (loop_cases(1288)[1287]: an asymmetric Coulomb level and a Stribeck law, 100 Hz,
     Student-t noise): after the Stribeck law a position load removes 60 % of the RMSE, mostly the constant an
     asymmetric level also is, 1.8 % better than the asymmetry while the residual still depends on velocity and
-    time.  It is reported ambiguous with the asymmetry, not as a load."""
+    time.  It is reported ambiguous with the asymmetry, not as a load (since the ninth round by the MIN_GAIN
+    separation of core._competition)."""
     log, _ = generate({"asymmetric_coulomb": 1.0, "stribeck": 1.0}, seed=4287, duration=120.0, sample_rate=100.0,
                       noise="student_t", noise_std=0.12315548087723906, check_visible=False)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
@@ -101,4 +102,8 @@ def test_spec_1287_names_the_load_only_as_ambiguous_with_the_asymmetry():
     for f in d["findings"]:
         if f["effect"] == "position_dependent_load":
             assert f["status"] == "ambiguous" and "asymmetric_coulomb" in f["ambiguous_between"]
-            assert f["competition"]["separation_from_runner_up"] < core.MIN_GAIN_NOT_WHITE
+            # 1.8 % is below MIN_GAIN: since the ninth round _competition already reports the pair (the third rule,
+            # mark_not_separated_under_misfit, tested on its own above, would otherwise)
+            c = f["competition"]
+            sep = c.get("separation_below_min_gain", {}).get("asymmetric_coulomb", c.get("separation_from_runner_up"))
+            assert sep < core.MIN_GAIN_NOT_WHITE

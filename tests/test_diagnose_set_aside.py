@@ -189,7 +189,10 @@ def test_rival_that_does_not_separate_on_held_out_blocks_makes_the_finding_ambig
     f = next(f for f in d["findings"] if f["effect"] == "asymmetric_coulomb")
     if f.get("ambiguous_between"):
         assert f["ambiguous_between"] == ["asymmetric_coulomb", "position_dependent_load"]
-        assert f["competition"]["paired_p_value"] > core.PAIRED_ALPHA
+        # not separated on the held-out blocks, or (ninth round) within MIN_GAIN of the asymmetry's held-out RMSE
+        c = f["competition"]
+        assert (c.get("paired_p_value", 0.0) > core.PAIRED_ALPHA
+                or c.get("separation_below_min_gain", {}).get("position_dependent_load", 1.0) < core.MIN_GAIN)
     else:
         assert f["competition"]["runner_up"] == "position_dependent_load" and f["competition"]["margin"] > 0
     assert d["set_aside"] == []
