@@ -121,14 +121,13 @@ def main(argv=None):
     ap.add_argument("--json", default=None)
     ap.add_argument("--markdown", default=None, help="comma-separated JSONs of earlier runs: print the docs' table rows")
     a = ap.parse_args(argv)
+    import json
     if a.markdown:
-        import json
         for f in a.markdown.split(","):
             print("\n".join(markdown_rows(json.load(open(f)))))
         return None
     rates = tuple(float(x) for x in a.rates.split(","))
     out = run(a.null, a.oov, rates, a.synth)
-    import json
     print(json.dumps(out["by_rate"], indent=1))
     if a.json:
         from drake_est.jsonutil import dump_json

@@ -25,8 +25,8 @@ import drake_est.diagnose.competition as comp
 import drake_est.diagnose.detectors as det
 from drake_est.diagnose.quantization import torque_step  # noqa: F401  (re-exported)
 from drake_est.diagnose.multilog import energy_fn, log_ids, per_log_offsets
-from drake_est.diagnose.nominal import (OUTLIER_MAD, OUTLIER_MAX_SHARE, block_index, joint_tau_step, nominal_columns, nominal_names,
-                                        prepare, robust_scale)
+from drake_est.diagnose.nominal import (block_index, joint_tau_step, nominal_columns, nominal_names, prepare,
+                                        screen_outliers)
 from drake_est.metrics import metrics_table
 from drake_est.regression import ridge_solve
 
@@ -495,7 +495,7 @@ def _competition(ext, tst, results, prep=None) -> dict:
             continue
         if not t["significant"]:
             continue
-        sep = _separation(tst, t)
+        sep = _separation(tst.get("rmse_reduction"), t.get("rmse_reduction"))
         if float(tst["score"] - t["score"]) < AMBIGUITY_MARGIN:
             close.append(e.effect)
         elif sep is not None and sep < MIN_GAIN:
@@ -533,14 +533,12 @@ def _competition(ext, tst, results, prep=None) -> dict:
     return _speed_confound(out, tst)
 
 
-def _separation(tst, t):
-    """How much better the winner (test ``tst``) predicts the held-out data of its round than a rival (test
-    ``t``): 1 - (1 - r_winner) / (1 - r_rival), r the RMSE reductions against the model of the round (None when
-    one is missing)."""
-    r_w, r_e = tst.get("rmse_reduction"), t.get("rmse_reduction")
-    if r_w is None or r_e is None or r_e >= 1.0:
+def _separation(r_winner, r_rival):
+    """How much better a winner predicts the held-out data of its round than a rival: 1 - (1 - r_winner) /
+    (1 - r_rival), r their RMSE reductions against the model of the round (None when one is missing)."""
+    if r_winner is None or r_rival is None or r_rival >= 1.0:
         return None
-    return 1.0 - (1.0 - float(r_w)) / (1.0 - float(r_e))
+    return 1.0 - (1.0 - float(r_winner)) / (1.0 - float(r_rival))
 
 
 def _speed_confound(out, tst) -> dict:
@@ -967,10 +965,9 @@ def mark_not_separated_under_misfit(steps, unexplained, min_gain_not_white=MIN_G
     marked = []
     for st, where in _later_on_structure(steps, unexplained):
         c = st.competition
-        r2 = c.get("runner_up_rmse_reduction")
-        if c.get("ambiguous") or not c.get("runner_up_significant") or r2 is None or r2 >= 1.0:
+        sep = _separation(st.test["rmse_reduction"], c.get("runner_up_rmse_reduction"))
+        if c.get("ambiguous") or not c.get("runner_up_significant") or sep is None:
             continue
-        sep = 1.0 - (1.0 - st.test["rmse_reduction"]) / (1.0 - r2)
         if sep < min_gain_not_white:
             st.competition = {**c, "ambiguous": True, "ambiguous_with": [c["runner_up"]],
                               "separation_from_runner_up": float(sep),
@@ -1060,12 +1057,10 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         if not screened:
             screened = True
             for j, jd in prep.joints.items():
-                e = jd.y - fit.pred[j]
-                med = np.median(e)
-                bad = np.abs(e - med) > OUTLIER_MAD * robust_scale(e, joint_tau_step(prep, j))
-                if bad.mean() > OUTLIER_MAX_SHARE:
-                    # misfit the search has not explained, not outliers (see prepare)
-                    jd.counts["outlier_screen_after_extension_skipped"] = int(bad.sum())
+                bad, skipped = screen_outliers(jd.y - fit.pred[j], joint_tau_step(prep, j))
+                if skipped:
+                    # misfit the search has not explained, not outliers
+                    jd.counts["outlier_screen_after_extension_skipped"] = skipped
                     continue
                 if bad.any():
                     new += int(bad.sum())

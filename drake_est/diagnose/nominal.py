@@ -39,8 +39,9 @@ def n_blocks_for(duration: float) -> int:
     n = int(np.clip(np.ceil(duration / BLOCK_S), N_BLOCKS, MAX_BLOCKS))
     return n + (n % 2)
 OUTLIER_MAD = 6.0
-#: largest share of a joint's rows the nominal outlier screen may flag; above it the tails are structure the nominal
-#: model misses (e.g. one direction of an asymmetric Coulomb level), not outliers, and nothing is screened
+#: largest share of a joint's rows an outlier screen (:func:`screen_outliers`: on the nominal residual in
+#: :func:`prepare`, on the final residual after the search) may flag; above it the tails are structure the model
+#: misses (e.g. one direction of an asymmetric Coulomb level), not outliers, and nothing is screened
 OUTLIER_MAX_SHARE = 0.05
 #: Savitzky-Golay window for velocities/accelerations computed from positions [s]
 DERIV_WINDOW_S = 0.1
@@ -295,13 +296,28 @@ def joint_tau_step(prep, j, tau=None) -> float:
     return steps[j]
 
 
+def outlier_mask(e, step: float = 0.0):
+    """The samples of a residual ``e`` more than ``OUTLIER_MAD`` robust standard deviations (:func:`robust_scale`,
+    floored at the rounding noise of a torque quantized with ``step``) from its median."""
+    e = np.asarray(e, float)
+    return np.abs(e - np.median(e)) > OUTLIER_MAD * robust_scale(e, step)
+
+
+def screen_outliers(e, step: float = 0.0):
+    """The outliers of a residual to screen out: :func:`outlier_mask`, or none when it flags more than
+    ``OUTLIER_MAX_SHARE`` of the samples (those tails are misfit, and removing them would remove the evidence).
+    Returns (mask, how many were flagged but not screened: 0 when the mask is applied)."""
+    bad = outlier_mask(e, step)
+    if bad.mean() > OUTLIER_MAX_SHARE:
+        return np.zeros_like(bad), int(bad.sum())
+    return bad, 0
+
+
 def _robust_lstsq(X, y, step: float = 0.0):
-    """Least squares, refitted once without the 6-MAD outliers of the first fit (:func:`robust_scale`, floored at the
-    rounding noise of a torque quantized with ``step``). Returns (coef, inlier mask)."""
+    """Least squares, refitted once without the 6-MAD outliers of the first fit (:func:`outlier_mask`). Returns
+    (coef, inlier mask)."""
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
-    e = y - X @ coef
-    med = np.median(e)
-    ok = np.abs(e - med) <= OUTLIER_MAD * robust_scale(e, step)
+    ok = ~outlier_mask(y - X @ coef, step)
     coef, *_ = np.linalg.lstsq(X[ok], y[ok], rcond=None)
     return coef, ok
 
@@ -645,13 +661,9 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
         # noise of a quantized torque)
         X = nominal_columns(jd, kind)
         coef, *_ = np.linalg.lstsq(X, jd.y, rcond=None)
-        r = jd.y - X @ coef
-        med = np.median(r)
-        bad = np.abs(r - med) > OUTLIER_MAD * robust_scale(r, joint_tau_step(prep, j, log.tau[:, c]))
-        if bad.mean() > OUTLIER_MAX_SHARE:
-            # that many are not outliers: removing them would remove the misfit the diagnosis is looking for
-            jd.counts["outlier_screen_skipped"] = int(bad.sum())
-            bad[:] = False
+        bad, skipped = screen_outliers(jd.y - X @ coef, joint_tau_step(prep, j, log.tau[:, c]))
+        if skipped:
+            jd.counts["outlier_screen_skipped"] = skipped
         jd.counts["outliers"] = int(bad.sum())
         jd.rows = rows[~bad]
         jd.train, jd.val = block_split(t, jd.rows)
