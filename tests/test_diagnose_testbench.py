@@ -154,7 +154,7 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout_round8.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout.json", "ninth round's final code"),
+                     ("diagnose_testbench_loop_heldout.json", "ninth and tenth rounds' final code"),
                      ("diagnose_testbench_loop_heldout200_round3.json", "third round's final code (commit 67c6825)"),
                      ("diagnose_testbench_loop_heldout200_round4.json", "fourth round's final code"),
                      ("diagnose_testbench_loop_heldout200_round5.json", "fifth round's final code"),
@@ -162,7 +162,7 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout200_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout200_round8.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout200_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout200.json", "ninth round's final code"),
+                     ("diagnose_testbench_loop_heldout200.json", "ninth and tenth rounds' final code"),
                      ("diagnose_testbench_loop_heldout300_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout300_round5_first.json", "fifth round's first code (commit 4c422f1)"),
                      ("diagnose_testbench_loop_heldout300_round5.json", "fifth round's final code"),
@@ -170,27 +170,27 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout300_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout300_round8.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout300_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout300.json", "ninth round's final code"),
+                     ("diagnose_testbench_loop_heldout300.json", "ninth and tenth rounds' final code"),
                      ("diagnose_testbench_loop_heldout400_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout400_round5.json", "fifth round's final code"),
                      ("diagnose_testbench_loop_heldout400_round6.json", "sixth round's final code"),
                      ("diagnose_testbench_loop_heldout400_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout400_round8.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout400_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout400.json", "ninth round's final code"),
+                     ("diagnose_testbench_loop_heldout400.json", "ninth and tenth rounds' final code"),
                      ("diagnose_testbench_loop_heldout500_round4.json", "fourth round's final code (commit 206f0e3)"),
                      ("diagnose_testbench_loop_heldout500_round5.json", "fifth round's final code"),
                      ("diagnose_testbench_loop_heldout500_round6.json", "sixth round's final code"),
                      ("diagnose_testbench_loop_heldout500_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout500_round8.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout500_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout500.json", "ninth round's final code"),
+                     ("diagnose_testbench_loop_heldout500.json", "ninth and tenth rounds' final code"),
                      ("diagnose_testbench_loop_heldout600_round5.json", "fifth round's final code (commit cd0d332)"),
                      ("diagnose_testbench_loop_heldout600_round6.json", "sixth round's final code"),
                      ("diagnose_testbench_loop_heldout600_round7.json", "seventh round's final code"),
                      ("diagnose_testbench_loop_heldout600_round8.json", "eighth round's final code"),
                      ("diagnose_testbench_loop_heldout600_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout600.json", "ninth round's final code"),
+                     ("diagnose_testbench_loop_heldout600.json", "ninth and tenth rounds' final code"),
                      ("diagnose_testbench_loop_heldout700_round6.json",
                       "700-799, sixth round's final code (commit c5bd003)"),
                      ("diagnose_testbench_loop_heldout700_round7_first.json",
@@ -214,8 +214,14 @@ def test_readme_testbench_counts_are_the_measured_ones():
                        for n in range(700, 1600, 100)),
                      *((f"diagnose_testbench_loop_heldout{n}_round9_first.json", f"{n}-{n + 99}, ninth round's first code")
                        for n in range(700, 1900, 100)),
-                     *((f"diagnose_testbench_loop_heldout{n}.json", f"{n}-{n + 99}, ninth round's final code")
-                       for n in range(700, 2000, 100))):
+                     *((f"diagnose_testbench_loop_heldout{n}.json",
+                        f"{n}-{n + 99}, " + ("tenth round's final code" if n == 1600 else
+                                             "ninth and tenth rounds' final code"))
+                       for n in range(700, 2000, 100)),
+                     ("diagnose_testbench_loop_heldout1600_round9.json", "1600-1699, ninth round's final code"),
+                     ("diagnose_testbench_loop_heldout2000_round9.json", "2000-2099, ninth round's final code, run once"),
+                     ("diagnose_testbench_loop_heldout2000.json", "2000-2099, tenth round's final code"),
+                     ("diagnose_testbench_loop_heldout2100.json", "2100-2199, tenth round's final code, run once")):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
@@ -235,15 +241,16 @@ def test_readme_testbench_counts_are_the_measured_ones():
     for base, fams in (("diagnose_testbench", ("testbench", "loop", "synth/generic", "synth/irb140")),
                        *((f"diagnose_testbench_loop_heldout{n}", (None,))
                          for n in ("", "200", "300", "400", "500", "600", "700", "800", "900", "1000", "1100", "1200",
-                                   "1300", "1400", "1500", "1600", "1700", "1800", "1900"))):
+                                   "1300", "1400", "1500", "1600", "1700", "1800", "1900", "2000", "2100"))):
         runs = {"700": ("_round6", "_round7_first", "_round7", "_round8"),
                 "800": ("_round7_first", "_round7", "_round8"), "900": ("_round7", "_round8"),
                 "1000": ("_round7", "_round8"), "1100": ("_round7", "_round8"),
                 "1200": ("_round8_first", "_round8"), "1300": ("_round8_second", "_round8"),
                 "1400": ("_round8_third", "_round8"), "1500": ("_round8",),
-                "1600": (), "1700": (), "1800": (), "1900": ()}.get(base[len("diagnose_testbench_loop_heldout"):],
-                                   ("_round5", "_round6", "_round7", "_round8")) + \
-            (("",) if base.endswith("1900") else ("_round9_first", ""))
+                "1600": (), "1700": (), "1800": (), "1900": (), "2000": (), "2100": ()}.get(
+                    base[len("diagnose_testbench_loop_heldout"):], ("_round5", "_round6", "_round7", "_round8")) + \
+            {"1600": ("_round9_first", "_round9", ""), "1900": ("",), "2000": ("_round9", ""), "2100": ("",)}.get(
+                base[len("diagnose_testbench_loop_heldout"):], ("_round9_first", ""))
         for f in (base + r + ".json" for r in runs):
             h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
             for fam in fams:
