@@ -252,6 +252,23 @@ def test_readme_scaling_text_is_generated_from_the_measured_json():
     assert bench.cluster_size(0.6, 180000, 2000.0)["workers_rounded_up"] == 30
 
 
+def test_readme_acceptance_row_holds_the_measured_json():
+    """The acceptance row of docs/readme/fleet.md that names benchmarks/results/fleet_acceptance.json holds its
+    numbers (logs, synthesis and diagnosis time, ok/failed, rate, planted changes found, healthy-robot warnings)."""
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    acc = json.loads((root / "benchmarks" / "results" / "fleet_acceptance.json").read_text())["acceptance"]
+    doc = (root / "docs" / "readme" / "fleet.md").read_text()
+    row = next(ln for ln in doc.splitlines() if "`benchmarks/results/fleet_acceptance.json`" in ln and ln.startswith("|"))
+    d, ch = acc["diagnose"], acc["check"]
+    assert f"| {acc['logs']:,} in {acc['synth_s']:.0f} s |" in row
+    assert (f"| {d['ok']:,} ok + {d['failed']} failed (corrupt) in {d['wall_s']:.0f} s = "
+            f"{d['logs'] / d['wall_s']:.2f} logs/s |") in row
+    assert f"**{ch['found']}/{ch['planted']}**" in row and f"| **{ch['healthy_robot_warnings']}** (" in row
+    assert f"({ch['extra_warnings_on_planted_robots']} other warnings)" in row
+    assert (f"all {acc['rerun_skipped']:,} skipped" in row) == (acc["rerun_skipped"] == acc["logs"])
+
+
 def test_readme_store_schema_matches_the_store(tmp_path):
     """Every table and column of the store is in the README's schema table, which lists no other table."""
     import re
