@@ -20,8 +20,8 @@ Two checks that run before a candidate of :mod:`drake_est.diagnose.core` is acce
   abrupt change claims that the friction changed *in time*, a time-periodic disturbance that a force recurs
   in time; when the fitted friction curve has the wrong shape (a Stribeck law of another form, a viscous term
   held at its bound), a time law can win a round by following how the speeds are distributed over the log
-  (point-to-point moves that repeat every few seconds make a speed-law misfit periodic in time).  Such a candidate must stay significant on the held-out data given a
-  free friction curve of each direction (:func:`speed_law_nuisance`: piecewise-linear in |qd|, knots at the
+  (point-to-point moves that repeat every few seconds make a speed-law misfit periodic in time).  Such a
+  candidate must stay significant on the held-out data given a free friction curve of each direction (:func:`speed_law_nuisance`: piecewise-linear in |qd|, knots at the
   training speeds' quantiles), the same partial F-test -- unless the free curve does not explain anything
   beyond the law in time either (speeds and time confounded in the log: e.g. the moves after a change all
   faster than those before it), when the law in time stands.

@@ -422,19 +422,17 @@ def markdown(d: dict) -> str:
         if "simulation.png" in files:
             L.append("\n![simulation](simulation.png)")
     if d.get("set_aside"):
-        L += ["", "## Findings set aside", ""]
+        L += ["", "## Findings set aside"]
         groups = (("Each finding is checked against the others: these were explained by them or not separated "
                    "from a simpler rival.", [r for r in d["set_aside"] if not r.get("not_confirmed")]),
                   ("Small findings are not confirmed while the final residual still holds structure:",
                    [r for r in d["set_aside"] if r.get("not_confirmed")]))
         for intro, rows in groups:
             if rows:
-                L += [intro, ""]
+                L += ["", intro, ""]
                 for r in rows:
                     where = f" (joint {r['joint']})" if r.get("joint") is not None else ""
                     L.append(f"- {r['effect']}{where}: {r['reason']}; the search was run again without it")
-                L.append("")
-        L.pop()
     if d.get("not_found"):
         L += ["", "## Candidates rejected in the last round", ""]
         for r in d["not_found"][:6]:
