@@ -222,7 +222,8 @@ def test_readme_testbench_counts_are_the_measured_ones():
                      ("diagnose_testbench_loop_heldout2000_round9.json", "2000-2099, ninth round's final code, run once"),
                      ("diagnose_testbench_loop_heldout2000.json", "2000-2099, tenth round's final code"),
                      ("diagnose_testbench_loop_heldout2100.json", "2100-2199, tenth round's final code, run once"),
-                     ("diagnose_testbench_loop_heldout2200.json", "2200-2299, tenth round's final code, run once")):
+                     ("diagnose_testbench_loop_heldout2200.json", "2200-2299, tenth round's final code, run once"),
+                     ("diagnose_testbench_loop_heldout2300.json", "2300-2399, tenth round's final code, run once")):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
@@ -242,15 +243,17 @@ def test_readme_testbench_counts_are_the_measured_ones():
     for base, fams in (("diagnose_testbench", ("testbench", "loop", "synth/generic", "synth/irb140")),
                        *((f"diagnose_testbench_loop_heldout{n}", (None,))
                          for n in ("", "200", "300", "400", "500", "600", "700", "800", "900", "1000", "1100", "1200",
-                                   "1300", "1400", "1500", "1600", "1700", "1800", "1900", "2000", "2100", "2200"))):
+                                   "1300", "1400", "1500", "1600", "1700", "1800", "1900", "2000", "2100", "2200",
+                                   "2300"))):
         runs = {"700": ("_round6", "_round7_first", "_round7", "_round8"),
                 "800": ("_round7_first", "_round7", "_round8"), "900": ("_round7", "_round8"),
                 "1000": ("_round7", "_round8"), "1100": ("_round7", "_round8"),
                 "1200": ("_round8_first", "_round8"), "1300": ("_round8_second", "_round8"),
                 "1400": ("_round8_third", "_round8"), "1500": ("_round8",),
-                "1600": (), "1700": (), "1800": (), "1900": (), "2000": (), "2100": (), "2200": ()}.get(
+                "1600": (), "1700": (), "1800": (), "1900": (), "2000": (), "2100": (), "2200": (), "2300": ()}.get(
                     base[len("diagnose_testbench_loop_heldout"):], ("_round5", "_round6", "_round7", "_round8")) + \
-            {"1600": ("_round9_first", "_round9", ""), "1900": ("",), "2000": ("_round9", ""), "2100": ("",), "2200": ("",)}.get(
+            {"1600": ("_round9_first", "_round9", ""), "1900": ("",), "2000": ("_round9", ""), "2100": ("",), "2200": ("",),
+             "2300": ("",)}.get(
                 base[len("diagnose_testbench_loop_heldout"):], ("_round9_first", ""))
         for f in (base + r + ".json" for r in runs):
             h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
