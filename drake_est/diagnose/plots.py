@@ -72,6 +72,11 @@ def write_plots(rep, out) -> list:
                 ax.axvline(0.0, color="0.5", lw=0.8)
                 ax.set_xlabel("time from the velocity reversal [s]")
                 ax.set_ylabel("mean residual x new direction")
+            elif "profile_snap" in u:     # the snap test of the left-out samples: mean residual per snap bin
+                ax.plot(u["profile_snap"], u["profile_mean_residual"], ".-")
+                ax.axhline(0.0, color="0.5", lw=0.8)
+                ax.set_xlabel("snap d^4q/dt^4 [rad/s^4] (accelerating samples left out by (9.9))")
+                ax.set_ylabel("mean residual")
             else:
                 ax.plot(xs[u["variable"]](jd, rows), r1, ".", ms=1.5, alpha=0.4)
                 ax.set_xlabel(u["variable"])

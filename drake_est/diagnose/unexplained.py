@@ -12,6 +12,8 @@ a fixed family-wise false-alarm rate (Bonferroni over the tests):
   jerk of the residual after an offset, the inertia and the derivative-filter error (snap, re-smoothing
   error) are regressed out (a delay between torque and position samples, backlash), and the time-shift test
   (:func:`_time_shift`); both only on samples whose velocity keeps one sign for ``SIGN_GUARD_S`` on both sides.
+* on the same left-out samples, an F-test of the residual's dependence on the snap d^4q/dt^4 beyond the
+  derivative filter's own error (:func:`snap_beyond_filter_error`: an elastic gear shows there).
 * at velocity reversals (any sample rate, generic axes): the momentum balance over a window around each
   reversal, the torque impulse minus J dv, the viscous and the Coulomb impulse (its sign switched at the
   stationary point of the measured position), t-tested across reversals for a mean that inertia,
@@ -40,6 +42,12 @@ MIN_SHARE_EXCLUDED = 0.08
 #: set-valued at rest), and its error, a jump of 2 kc within the stencil, had been taken for a delay or backlash
 #: on null logs
 SIGN_GUARD_S = 0.1
+#: [s] the snap test (:func:`snap_beyond_filter_error`) models the derivative filter's error by the first terms of
+#: its Taylor series (kappa x snap, then the sixth derivative), which hold when the window is short against the
+#: motion: it runs only when the window spans at most the diagnosis' own 0.1 s
+#: (:data:`~drake_est.diagnose.nominal.DERIV_WINDOW_S`), not where the 7-sample minimum stretches it (below 70 Hz;
+#: at 50 Hz, 0.12 s, it flagged a null log and a vocabulary log on outlying snap samples)
+SNAP_MAX_WINDOW_S = 0.1
 N_BINS = 20
 #: fewest accelerating samples for the left-out-sample tests (10 per ANOVA bin)
 MIN_EXCLUDED_SAMPLES = 200
@@ -263,16 +271,72 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     pred = _friction_at(model, fit, jd, j, idx)
     if pred is None:
         return None
-    e = (jd.tau - jd.rb)[idx] - pred
+    e_raw = (jd.tau - jd.rb)[idx] - pred
     N, jerk_all = _derivative_nuisance(prep, jd, idx)
     jerk = jerk_all[idx]
-    e = e - N @ np.linalg.lstsq(N, e, rcond=None)[0]
+    e = e_raw - N @ np.linalg.lstsq(N, e_raw, rcond=None)[0]
     # jerk: a delay d between torque and position samples leaves -d dtau/dt = -d (J jerk + kv qdd + ...);
     # its qdd part is absorbed by the inertia, the jerk part is not (no axis model depends on jerk); backlash
     # (torque missing while the motor crosses the dead band after a reversal) shows there too
     r = _anova(jerk, e)
     # the quantization guard compares with the variance of this residual (not of the selected samples')
-    return {"jerk_excluded_samples": None if r is None else (*r, float(np.var(e)))}
+    return {"jerk_excluded_samples": None if r is None else (*r, float(np.var(e))),
+            "snap_excluded_samples": snap_beyond_filter_error(prep, jd, idx, e_raw)}
+
+
+def filter_snap_gain(window_samples, polyorder, h):
+    """kappa [s^2]: the error of the Savitzky-Golay second derivative (``window_samples``, ``polyorder``, sample
+    interval ``h``) per unit snap, qdd_hat = qdd + kappa d^4q/dt^4 + ...: the filter applied to t^4 / 24 at the
+    centre of its window (for a continuous window of half-width L, kappa = L^2 / 14)."""
+    from scipy.signal import savgol_coeffs
+    x = (np.arange(window_samples) - (window_samples - 1) / 2.0) * h
+    return float(savgol_coeffs(window_samples, polyorder, deriv=2, delta=h, use="dot") @ (x ** 4 / 24.0))
+
+
+def snap_beyond_filter_error(prep, jd, idx, e_raw):
+    """Does the residual ``e_raw`` (final model, at the accelerating samples ``idx`` that (9.9) left out) follow the
+    snap d^4q/dt^4 by more than the derivative filter's own error?  The Savitzky-Golay qdd errs by kappa x snap
+    (:func:`filter_snap_gain`, known from the window), so a rigid axis leaves e = -J kappa snap there; that part is
+    added back, and the snap's coefficient in the rest is F-tested after an offset, the inertia (qdd), the
+    re-smoothing error (corners of the acceleration) and the sixth derivative (the filter error's next term) are
+    regressed out.  An elastic gear (motor-side encoder) leaves about -(J_load^2 / k) snap below its resonance, a
+    term no axis model has.  The snap is the filter's second derivative of the smoothed qdd.  Only where the window
+    spans at most ``SNAP_MAX_WINDOW_S``.  Returns (p, share, coefficient [N m s^4 per rad], variance of the residual
+    after the nuisance, snap bin centres, mean residual per bin) or None."""
+    from scipy.signal import savgol_filter
+    der = prep.log.meta.get("derivatives") or {}
+    w, po = der.get("window_samples"), der.get("polyorder")
+    if not w or po is None or w >= jd.a.size or idx.size < MIN_EXCLUDED_SAMPLES:
+        return None
+    h = float(np.median(np.diff(jd.t)))
+    if (int(w) - 1) * h > SNAP_MAX_WINDOW_S + 1e-9:
+        return None
+    snap_all = savgol_filter(jd.a, int(w), int(po), deriv=2, delta=h)
+    snap = snap_all[idx]
+    J = float(jd.counts.get("inertia") or 0.0)
+    e = e_raw + J * filter_snap_gain(int(w), int(po), h) * snap
+    # the next term of the filter's error (the sixth derivative: a free coefficient) and motion near the filter's
+    # cut-off (a ripple that moves the axis), for which kappa x snap is not the whole error, are nuisances too
+    sixth = savgol_filter(snap_all, int(w), int(po), deriv=2, delta=h)[idx]
+    N = np.column_stack([np.ones(idx.size), jd.a[idx], _resmoothing_error(prep, jd)[idx], sixth])
+    proj = lambda x: x - N @ np.linalg.lstsq(N, x, rcond=None)[0]   # noqa: E731
+    e, s = proj(e), proj(snap)
+    ss, dd = float(e @ e), float(s @ s)
+    n = idx.size
+    if ss <= 0 or dd <= 0 or n < 10:
+        return None
+    coef = float(s @ e) / dd
+    gain = coef * coef * dd
+    F = gain / max((ss - gain) / (n - 5), 1e-300)
+    p = float(scipy.stats.f.sf(F, 1, n - 5))
+    # where it lies: the mean residual over 20 quantile bins of the snap (a plot, not the test)
+    edges = np.unique(np.quantile(snap, np.linspace(0, 1, N_BINS + 1)))
+    b = np.clip(np.searchsorted(edges, snap, side="right") - 1, 0, max(edges.size - 2, 0))
+    cnt = np.bincount(b, minlength=max(edges.size - 1, 1))
+    ok = cnt > 0
+    centres = np.bincount(b, weights=snap, minlength=cnt.size)[ok] / cnt[ok]
+    means = np.bincount(b, weights=e, minlength=cnt.size)[ok] / cnt[ok]
+    return p, gain / ss, coef, ss / n, [float(x) for x in centres], [float(x) for x in means]
 
 
 def reversal_times(t, q, v, half_s=0.02):
@@ -479,6 +543,11 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
                  "test": "autocorrelation F-test" if name == "time_correlation" else "ANOVA over 20 quantile bins"}
             if name == "time_correlation":
                 d["lag1_coefficient"] = where
+            elif name == "snap_excluded_samples":
+                d["test"] = ("F-test of the snap d^4q/dt^4 beyond the derivative filter's own error (offset, inertia, "
+                             "re-smoothing error and sixth derivative regressed out)")
+                d["snap_coefficient"] = where
+                d["profile_snap"], d["profile_mean_residual"] = r[4], r[5]
             elif name == "time_shift_torque_vs_position":
                 d["test"] = "F-test of the odd model-torque difference (torque = model at a shifted time)"
                 d["samples"] = (f"moving samples with one velocity sign for {SIGN_GUARD_S:g} s (or the largest shift) "
