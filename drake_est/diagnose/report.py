@@ -262,7 +262,8 @@ class DiagnosisReport:
         nv = d["nominal"]["validation"]
         lines.append(f"nominal model: held-out RMSE {_num(nv['rmse'], '.4g')} {u}, Fit {_num(nv['fit'], '.1f')} %")
         if not d["findings"]:
-            lines.append("no finding: the nominal model explains the held-out data (no extension passed the test)")
+            lines.append("no finding: no extension passed the test" + (
+                "" if d.get("unexplained") else "; the nominal model explains the held-out data"))
         for f in d["findings"]:
             ev = f["evidence"]
             extra = ""
@@ -289,6 +290,15 @@ class DiagnosisReport:
         named = ", ".join(f"{f['effect']} (joint {f['joint']})" for f in d["findings"]) or "(nominal)"
         lines.append(f"final model {named}: held-out RMSE {fv['rmse']:.4g} {u}, "
                      f"Fit {fv['fit']:.1f} %, gain x{d['final']['gain']['rmse_ratio']:.3g}")
+        # what the final model leaves: structure no vocabulary entry explains (no cause named), and the experiments
+        # that would decide what this log cannot
+        for x in d.get("unexplained", []):
+            lines.append(f"UNEXPLAINED joint {x['joint']}: structure in {x['variable']} "
+                         f"({100 * x['share_of_residual_variance']:.1f} % of the residual variance, "
+                         f"p = {x['p_value']:.2g}); no cause named")
+        if d.get("next_experiment"):
+            n = len(d["next_experiment"])
+            lines.append(f"next experiment: {n} suggestion{'s' if n > 1 else ''} in report.md (## Next experiment)")
         return "\n".join(lines)
 
 
