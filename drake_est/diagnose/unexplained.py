@@ -72,11 +72,16 @@ REVERSAL_SIGN_TOL = 0.1
 THERMAL_MIN_DURATION_S = 3600.0
 
 
-def _anova(x, e, n_bins=N_BINS):
+def _quantile_bins(x, n_bins=N_BINS):
+    """(edges, bin index of each x) for ``n_bins`` quantile bins of x (equal edges merged)."""
     edges = np.unique(np.quantile(x, np.linspace(0, 1, n_bins + 1)))
+    return edges, np.clip(np.searchsorted(edges, x, side="right") - 1, 0, max(edges.size - 2, 0))
+
+
+def _anova(x, e, n_bins=N_BINS):
+    edges, b = _quantile_bins(x, n_bins)
     if edges.size < 3:
         return None
-    b = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, edges.size - 2)
     B = int(b.max()) + 1
     cnt = np.bincount(b, minlength=B).astype(float)
     ok = cnt > 0
@@ -281,7 +286,7 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     r = _anova(jerk, e)
     # the quantization guard compares with the variance of this residual (not of the selected samples')
     return {"jerk_excluded_samples": None if r is None else (*r, float(np.var(e))),
-            "snap_excluded_samples": snap_beyond_filter_error(prep, jd, idx, e_raw)}
+            "snap_excluded_samples": snap_beyond_filter_error(prep, jd, idx, e_raw, N[:, [0, 1, 3]])}
 
 
 def filter_snap_gain(window_samples, polyorder, h):
@@ -293,7 +298,7 @@ def filter_snap_gain(window_samples, polyorder, h):
     return float(savgol_coeffs(window_samples, polyorder, deriv=2, delta=h, use="dot") @ (x ** 4 / 24.0))
 
 
-def snap_beyond_filter_error(prep, jd, idx, e_raw):
+def snap_beyond_filter_error(prep, jd, idx, e_raw, nuisance):
     """Does the residual ``e_raw`` (final model, at the accelerating samples ``idx`` that (9.9) left out) follow the
     snap d^4q/dt^4 by more than the derivative filter's own error?  The Savitzky-Golay qdd errs by kappa x snap
     (:func:`filter_snap_gain`, known from the window), so a rigid axis leaves e = -J kappa snap there; that part is
@@ -301,8 +306,9 @@ def snap_beyond_filter_error(prep, jd, idx, e_raw):
     re-smoothing error (corners of the acceleration) and the sixth derivative (the filter error's next term) are
     regressed out.  An elastic gear (motor-side encoder) leaves about -(J_load^2 / k) snap below its resonance, a
     term no axis model has.  The snap is the filter's second derivative of the smoothed qdd.  Only where the window
-    spans at most ``SNAP_MAX_WINDOW_S``.  Returns (p, share, coefficient [N m s^4 per rad], variance of the residual
-    after the nuisance, snap bin centres, mean residual per bin) or None."""
+    spans at most ``SNAP_MAX_WINDOW_S``.  ``nuisance``: the offset, qdd and re-smoothing error columns at ``idx``
+    (those of :func:`_derivative_nuisance`, without its snap).  Returns (p, share, coefficient [N m s^4 per rad],
+    variance of the residual after the nuisance, snap bin centres, mean residual per bin) or None."""
     from scipy.signal import savgol_filter
     der = prep.log.meta.get("derivatives") or {}
     w, po = der.get("window_samples"), der.get("polyorder")
@@ -318,7 +324,7 @@ def snap_beyond_filter_error(prep, jd, idx, e_raw):
     # the next term of the filter's error (the sixth derivative: a free coefficient) and motion near the filter's
     # cut-off (a ripple that moves the axis), for which kappa x snap is not the whole error, are nuisances too
     sixth = savgol_filter(snap_all, int(w), int(po), deriv=2, delta=h)[idx]
-    N = np.column_stack([np.ones(idx.size), jd.a[idx], _resmoothing_error(prep, jd)[idx], sixth])
+    N = np.column_stack([nuisance, sixth])
     proj = lambda x: x - N @ np.linalg.lstsq(N, x, rcond=None)[0]   # noqa: E731
     e, s = proj(e), proj(snap)
     ss, dd = float(e @ e), float(s @ s)
@@ -330,8 +336,7 @@ def snap_beyond_filter_error(prep, jd, idx, e_raw):
     F = gain / max((ss - gain) / (n - 5), 1e-300)
     p = float(scipy.stats.f.sf(F, 1, n - 5))
     # where it lies: the mean residual over 20 quantile bins of the snap (a plot, not the test)
-    edges = np.unique(np.quantile(snap, np.linspace(0, 1, N_BINS + 1)))
-    b = np.clip(np.searchsorted(edges, snap, side="right") - 1, 0, max(edges.size - 2, 0))
+    edges, b = _quantile_bins(snap)
     cnt = np.bincount(b, minlength=max(edges.size - 1, 1))
     ok = cnt > 0
     centres = np.bincount(b, weights=snap, minlength=cnt.size)[ok] / cnt[ok]
