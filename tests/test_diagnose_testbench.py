@@ -234,7 +234,8 @@ def test_readme_testbench_counts_are_the_measured_ones():
                       "2300-2399, tenth round's final code, run once"),
                      ("diagnose_testbench_loop_heldout2300.json", "2300-2399, eleventh round's final code"),
                      ("diagnose_testbench_loop_heldout2400.json", "2400-2499, eleventh round's final code, run once"),
-                     ("diagnose_testbench_loop_heldout2500.json", "2500-2599, eleventh round's final code, run once")):
+                     ("diagnose_testbench_loop_heldout2500.json", "2500-2599, eleventh round's final code, run once"),
+                     ("diagnose_testbench_loop_heldout2600.json", "2600-2699, eleventh round's final code, run once")):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
                 f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
@@ -255,16 +256,16 @@ def test_readme_testbench_counts_are_the_measured_ones():
                        *((f"diagnose_testbench_loop_heldout{n}", (None,))
                          for n in ("", "200", "300", "400", "500", "600", "700", "800", "900", "1000", "1100", "1200",
                                    "1300", "1400", "1500", "1600", "1700", "1800", "1900", "2000", "2100", "2200",
-                                   "2300", "2400", "2500"))):
+                                   "2300", "2400", "2500", "2600"))):
         runs = {"700": ("_round6", "_round7_first", "_round7", "_round8"),
                 "800": ("_round7_first", "_round7", "_round8"), "900": ("_round7", "_round8"),
                 "1000": ("_round7", "_round8"), "1100": ("_round7", "_round8"),
                 "1200": ("_round8_first", "_round8"), "1300": ("_round8_second", "_round8"),
                 "1400": ("_round8_third", "_round8"), "1500": ("_round8",),
-                "1600": (), "1700": (), "1800": (), "1900": (), "2000": (), "2100": (), "2200": (), "2300": (), "2400": (), "2500": ()}.get(
+                "1600": (), "1700": (), "1800": (), "1900": (), "2000": (), "2100": (), "2200": (), "2300": (), "2400": (), "2500": (), "2600": ()}.get(
                     base[len("diagnose_testbench_loop_heldout"):], ("_round5", "_round6", "_round7", "_round8")) + \
             {"1600": ("_round9_first", "_round9", ""), "1900": ("",), "2000": ("_round9", ""), "2100": ("",), "2200": ("",),
-             "2300": ("_round10", ""), "2400": ("",), "2500": ("",), **{str(n): ("_round9_first", "_round10", "") for n in ELEVENTH if n < 2000}}.get(
+             "2300": ("_round10", ""), "2400": ("",), "2500": ("",), "2600": ("",), **{str(n): ("_round9_first", "_round10", "") for n in ELEVENTH if n < 2000}}.get(
                 base[len("diagnose_testbench_loop_heldout"):], ("_round9_first", ""))
         for f in (base + r + ".json" for r in runs):
             h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
