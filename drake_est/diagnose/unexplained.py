@@ -48,6 +48,11 @@ SIGN_GUARD_S = 0.1
 #: (:data:`~drake_est.diagnose.nominal.DERIV_WINDOW_S`), not where the 7-sample minimum stretches it (below 70 Hz;
 #: at 50 Hz, 0.12 s, it flagged a null log and a vocabulary log on outlying snap samples)
 SNAP_MAX_WINDOW_S = 0.1
+#: quantization guard of the snap test, in torque ADC steps: rounding leaves an error of at most half a step per
+#: sample, and the part of it that any set of regressors fits has an RMS no larger than the error's own, so a
+#: snap term whose fitted RMS exceeds half a step is not the ADC's.  (The other tests keep one step: quantized null
+#: logs hold jerk structure of up to 0.79 step RMS, loop spec 370, which is not rounding alone.)
+SNAP_ADC_GUARD_STEPS = 0.5
 N_BINS = 20
 #: fewest accelerating samples for the left-out-sample tests (10 per ANOVA bin)
 MIN_EXCLUDED_SAMPLES = 200
@@ -537,8 +542,10 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
             continue
         p, share, where = r[:3]
         v_e = r[3] if len(r) > 3 else var[j]
-        # a quantized torque leaves a deterministic error below one step that follows the torque level
-        if steps[j] > 0 and np.sqrt(share * v_e) < steps[j]:
+        # a quantized torque leaves a deterministic error below one step that follows the torque level (the snap
+        # test: half a step, SNAP_ADC_GUARD_STEPS)
+        guard = steps[j] * (SNAP_ADC_GUARD_STEPS if name == "snap_excluded_samples" else 1.0)
+        if steps[j] > 0 and np.sqrt(share * v_e) < guard:
             continue
         need = max(min_share, MIN_SHARE_EXCLUDED) if name.endswith("_excluded_samples") else min_share
         if p < alpha / n_tests and share >= need:
