@@ -11,7 +11,6 @@ from drake_est.diagnose.testbench import generate
 
 #: closed-loop blocks whose rows the eleventh round (the snap test) changed: their tenth-round JSONs are kept as
 #: *_round10.json
-ELEVENTH = (800, 900, 1000, 1100, 2300)
 
 
 def _d(effects, **kw):
@@ -148,101 +147,6 @@ def test_readme_testbench_counts_are_the_measured_ones():
             f"{t2['null_logs_clean']} / {t2['null_logs']} |") in readme
     assert (f"{l2['correct']} / {l2['logs']} correct, {l2['wrong_names']} wrong names, {l2['missed']} missed"
             in " ".join(readme.split()))
-    # the loop blocks from 100 on, every round's run of each (the fresh blocks: also the code that first met them)
-    import re
-    for f, label in (("diagnose_testbench_loop_heldout_round2.json", "second round's code (commit 39da320)"),
-                     ("diagnose_testbench_loop_heldout_round3.json", "third round's final code"),
-                     ("diagnose_testbench_loop_heldout_round4.json", "fourth round's final code"),
-                     ("diagnose_testbench_loop_heldout_round5.json", "fifth round's final code"),
-                     ("diagnose_testbench_loop_heldout_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout_round7.json", "seventh round's final code"),
-                     ("diagnose_testbench_loop_heldout_round8.json", "eighth round's final code"),
-                     ("diagnose_testbench_loop_heldout_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout.json", "ninth and tenth rounds' final code"),
-                     ("diagnose_testbench_loop_heldout200_round3.json", "third round's final code (commit 67c6825)"),
-                     ("diagnose_testbench_loop_heldout200_round4.json", "fourth round's final code"),
-                     ("diagnose_testbench_loop_heldout200_round5.json", "fifth round's final code"),
-                     ("diagnose_testbench_loop_heldout200_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout200_round7.json", "seventh round's final code"),
-                     ("diagnose_testbench_loop_heldout200_round8.json", "eighth round's final code"),
-                     ("diagnose_testbench_loop_heldout200_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout200.json", "ninth and tenth rounds' final code"),
-                     ("diagnose_testbench_loop_heldout300_round4.json", "fourth round's final code (commit 206f0e3)"),
-                     ("diagnose_testbench_loop_heldout300_round5_first.json", "fifth round's first code (commit 4c422f1)"),
-                     ("diagnose_testbench_loop_heldout300_round5.json", "fifth round's final code"),
-                     ("diagnose_testbench_loop_heldout300_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout300_round7.json", "seventh round's final code"),
-                     ("diagnose_testbench_loop_heldout300_round8.json", "eighth round's final code"),
-                     ("diagnose_testbench_loop_heldout300_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout300.json", "ninth and tenth rounds' final code"),
-                     ("diagnose_testbench_loop_heldout400_round4.json", "fourth round's final code (commit 206f0e3)"),
-                     ("diagnose_testbench_loop_heldout400_round5.json", "fifth round's final code"),
-                     ("diagnose_testbench_loop_heldout400_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout400_round7.json", "seventh round's final code"),
-                     ("diagnose_testbench_loop_heldout400_round8.json", "eighth round's final code"),
-                     ("diagnose_testbench_loop_heldout400_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout400.json", "ninth and tenth rounds' final code"),
-                     ("diagnose_testbench_loop_heldout500_round4.json", "fourth round's final code (commit 206f0e3)"),
-                     ("diagnose_testbench_loop_heldout500_round5.json", "fifth round's final code"),
-                     ("diagnose_testbench_loop_heldout500_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout500_round7.json", "seventh round's final code"),
-                     ("diagnose_testbench_loop_heldout500_round8.json", "eighth round's final code"),
-                     ("diagnose_testbench_loop_heldout500_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout500.json", "ninth and tenth rounds' final code"),
-                     ("diagnose_testbench_loop_heldout600_round5.json", "fifth round's final code (commit cd0d332)"),
-                     ("diagnose_testbench_loop_heldout600_round6.json", "sixth round's final code"),
-                     ("diagnose_testbench_loop_heldout600_round7.json", "seventh round's final code"),
-                     ("diagnose_testbench_loop_heldout600_round8.json", "eighth round's final code"),
-                     ("diagnose_testbench_loop_heldout600_round9_first.json", "ninth round's first code"),
-                     ("diagnose_testbench_loop_heldout600.json", "ninth and tenth rounds' final code"),
-                     ("diagnose_testbench_loop_heldout700_round6.json",
-                      "700-799, sixth round's final code (commit c5bd003)"),
-                     ("diagnose_testbench_loop_heldout700_round7_first.json",
-                      "700-799, seventh round's first code (commit 1578b1e)"),
-                     ("diagnose_testbench_loop_heldout700_round7.json", "700-799, seventh round's final code"),
-                     ("diagnose_testbench_loop_heldout800_round7_first.json",
-                      "800-899, seventh round's first code (commit 1578b1e)"),
-                     ("diagnose_testbench_loop_heldout800_round7.json", "800-899, seventh round's final code"),
-                     ("diagnose_testbench_loop_heldout900_round7.json",
-                      "900-999, seventh round's final code (commit 18b600f)"),
-                     ("diagnose_testbench_loop_heldout1000_round7.json",
-                      "1000-1099, seventh round's final code (commit d76d1a0)"),
-                     ("diagnose_testbench_loop_heldout1100_round7.json",
-                      "1100-1199, seventh round's final code (commit 7a28354)"),
-                     ("diagnose_testbench_loop_heldout1200_round8_first.json", "1200-1299, eighth round's first code"),
-                     ("diagnose_testbench_loop_heldout1300_round8_second.json",
-                      "1300-1399, eighth round's second code"),
-                     ("diagnose_testbench_loop_heldout1400_round8_third.json",
-                      "1400-1499, eighth round's third code (commit 7a57b5a)"),
-                     *((f"diagnose_testbench_loop_heldout{n}_round8.json", f"{n}-{n + 99}, eighth round's final code")
-                       for n in range(700, 1600, 100)),
-                     *((f"diagnose_testbench_loop_heldout{n}_round9_first.json", f"{n}-{n + 99}, ninth round's first code")
-                       for n in range(700, 1900, 100)),
-                     *((f"diagnose_testbench_loop_heldout{n}.json",
-                        f"{n}-{n + 99}, " + ("tenth round's final code" if n == 1600 else
-                                             "eleventh round's final code" if n in ELEVENTH else
-                                             "ninth and tenth rounds' final code"))
-                       for n in range(700, 2000, 100)),
-                     *((f"diagnose_testbench_loop_heldout{n}_round10.json",
-                        f"{n}-{n + 99}, ninth and tenth rounds' final code") for n in ELEVENTH if n < 2000),
-                     ("diagnose_testbench_loop_heldout1600_round9.json", "1600-1699, ninth round's final code"),
-                     ("diagnose_testbench_loop_heldout2000_round9.json", "2000-2099, ninth round's final code, run once"),
-                     ("diagnose_testbench_loop_heldout2000.json", "2000-2099, tenth round's final code"),
-                     ("diagnose_testbench_loop_heldout2100.json", "2100-2199, tenth round's final code, run once"),
-                     ("diagnose_testbench_loop_heldout2200.json", "2200-2299, tenth round's final code, run once"),
-                     ("diagnose_testbench_loop_heldout2300_round10.json",
-                      "2300-2399, tenth round's final code, run once"),
-                     ("diagnose_testbench_loop_heldout2300.json", "2300-2399, eleventh round's final code"),
-                     ("diagnose_testbench_loop_heldout2400.json", "2400-2499, eleventh round's final code, run once"),
-                     ("diagnose_testbench_loop_heldout2500.json", "2500-2599, eleventh round's final code, run once"),
-                     ("diagnose_testbench_loop_heldout2600.json", "2600-2699, eleventh round's final code, run once")):
-        h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
-        assert (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
-                f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |") in readme
-        assert mod.ambiguity_line(f"`{f}`", h) in readme, f
-        m = re.search(r"heldout(\d+)", f)
-        lo = int(m.group(1)) if m else 100
-        assert {r["k"] for r in h["rows"]} <= set(range(lo, lo + 100))
     # the ambiguity table of the open-loop and closed-loop families, fourth round's JSON and this one
     for f in ("diagnose_testbench_round4.json", "diagnose_testbench_round5.json", "diagnose_testbench_round6.json",
               "diagnose_testbench_round7.json", "diagnose_testbench_round8.json", "diagnose_testbench_round9_first.json",
@@ -252,27 +156,13 @@ def test_readme_testbench_counts_are_the_measured_ones():
             assert mod.ambiguity_line(f"{fam} family of `{f}`", h["per_family"][fam]) in readme, (f, fam)
     # the sixth to eighth rounds' tables of the "unexplained" verdict: every family / block, the fifth to eighth
     # rounds' JSONs (the fresh blocks from 700 on: the runs each was given)
-    for base, fams in (("diagnose_testbench", ("testbench", "loop", "synth/generic", "synth/irb140")),
-                       *((f"diagnose_testbench_loop_heldout{n}", (None,))
-                         for n in ("", "200", "300", "400", "500", "600", "700", "800", "900", "1000", "1100", "1200",
-                                   "1300", "1400", "1500", "1600", "1700", "1800", "1900", "2000", "2100", "2200",
-                                   "2300", "2400", "2500", "2600"))):
-        runs = {"700": ("_round6", "_round7_first", "_round7", "_round8"),
-                "800": ("_round7_first", "_round7", "_round8"), "900": ("_round7", "_round8"),
-                "1000": ("_round7", "_round8"), "1100": ("_round7", "_round8"),
-                "1200": ("_round8_first", "_round8"), "1300": ("_round8_second", "_round8"),
-                "1400": ("_round8_third", "_round8"), "1500": ("_round8",),
-                "1600": (), "1700": (), "1800": (), "1900": (), "2000": (), "2100": (), "2200": (), "2300": (), "2400": (), "2500": (), "2600": ()}.get(
-                    base[len("diagnose_testbench_loop_heldout"):], ("_round5", "_round6", "_round7", "_round8")) + \
-            {"1600": ("_round9_first", "_round9", ""), "1900": ("",), "2000": ("_round9", ""), "2100": ("",), "2200": ("",),
-             "2300": ("_round10", ""), "2400": ("",), "2500": ("",), "2600": ("",), **{str(n): ("_round9_first", "_round10", "") for n in ELEVENTH if n < 2000}}.get(
-                base[len("diagnose_testbench_loop_heldout"):], ("_round9_first", ""))
-        for f in (base + r + ".json" for r in runs):
-            h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
-            for fam in fams:
-                line = (mod.unexplained_line(f"{fam} family of `{f}`", h["per_family"][fam]) if fam
-                        else mod.unexplained_line(f"`{f}`", h))
-                assert line in readme, line
+    # (the closed-loop blocks' rows: test_every_closed_loop_block_row_in_the_docs_is_its_json)
+    for r in ("_round5", "_round6", "_round7", "_round8", "_round9_first", ""):
+        f = f"diagnose_testbench{r}.json"
+        h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
+        for fam in ("testbench", "loop", "synth/generic", "synth/irb140"):
+            line = mod.unexplained_line(f"{fam} family of `{f}`", h["per_family"][fam])
+            assert line in readme, line
     # the third to seventh rounds' JSONs: their testbench rows
     for f in ("diagnose_testbench_round3.json", "diagnose_testbench_round4.json", "diagnose_testbench_round5.json",
               "diagnose_testbench_round6.json", "diagnose_testbench_round7.json", "diagnose_testbench_round8.json",
@@ -287,6 +177,65 @@ def test_readme_testbench_counts_are_the_measured_ones():
         assert (f"(testbench family of `diagnose_testbench.json`) | **{t['correct']}** | **{t['wrong_names']}** | "
                 f"{t['missed']} | **{t['oov_unexplained_right']} / {t['oov_logs']}** | "
                 f"**{t['null_logs_clean']} / {t['null_logs']}** |") in readme
+
+
+def test_every_closed_loop_block_row_in_the_docs_is_its_json():
+    """Every table row of docs/readme/diagnose_testbench.md that names a closed-loop block JSON
+    (``diagnose_testbench_loop_heldout*.json``: a run row, a row of the "unexplained" table or of the ambiguity
+    table) holds the counts that summarize() gives for that JSON, and every such JSON kept in benchmarks/results
+    has a run row, a row in the "unexplained" table and one in the ambiguity table or is named in a run row only
+    (the older rounds)."""
+    import importlib.util
+    import json
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    readme = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    cache = {}
+
+    def summary(f):
+        if f not in cache:
+            cache[f] = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
+        return cache[f]
+
+    pat = re.compile(r"`(diagnose_testbench_loop_heldout\d*(?:_[a-z0-9_]+)?\.json)`")
+    run_rows = set()
+    n_rows = 0
+    for line in (x.strip() for x in readme.splitlines()):
+        if not line.startswith("| "):
+            continue
+        m = pat.search(line)
+        if m is None:
+            continue
+        f = m.group(1)
+        h = summary(f)
+        n_rows += 1
+        m_run = re.match(r"^\| (.+) \(`" + re.escape(f) + r"`\) \| ", line)
+        if m_run:
+            label = m_run.group(1)
+            assert line == (f"| {label} (`{f}`) | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
+                            f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / "
+                            f"{h['null_logs']} |"), line
+            run_rows.add(f)
+        else:
+            assert line in (mod.unexplained_line(f"`{f}`", h), mod.ambiguity_line(f"`{f}`", h)), line
+        m_rows = {r["k"] for r in h["rows"]}
+        lo = re.search(r"heldout(\d+)", f)
+        lo = int(lo.group(1)) if lo else 100
+        assert m_rows <= set(range(lo, lo + 100)), f
+    kept = sorted(p.name for p in (root / "benchmarks" / "results").glob("diagnose_testbench_loop_heldout*.json"))
+    assert n_rows > len(kept)
+    assert set(kept) <= run_rows, sorted(set(kept) - run_rows)
+    # the ambiguity table holds every block JSON, the "unexplained" table every one from the fifth round on
+    amb = {f for f in kept if mod.ambiguity_line(f"`{f}`", summary(f)) in readme}
+    assert amb == set(kept), sorted(set(kept) - amb)
+    early = re.compile(r"_round[234]\.json$|_round5_first\.json$")
+    une = {f for f in kept if mod.unexplained_line(f"`{f}`", summary(f)) in readme}
+    assert {f for f in kept if not early.search(f)} <= une, sorted({f for f in kept if not early.search(f)} - une)
 
 
 def test_summarize_counts_per_family():
