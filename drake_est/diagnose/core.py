@@ -550,7 +550,13 @@ def _speed_confound(out, tst) -> dict:
     if not c:
         return out
     position = "position_law_given_speed_law" in c
-    if position:
+    rival = c.get("rival", "stribeck") if position else "stribeck"
+    if position and rival == "asymmetric_coulomb":
+        why = ("position and direction of motion are confounded in this log: one friction level per direction "
+               "explains the held-out data as well as this position law (which adds nothing to it, "
+               f"p = {c['position_law_given_direction_levels']['p_value']:.2g}), so an asymmetric Coulomb friction "
+               "is not ruled out")
+    elif position:
         why = ("position and speed are confounded in this log: a free friction curve of each direction explains "
                "the held-out data as well as this position law (which adds nothing to it, "
                f"p = {c['position_law_given_speed_law']['p_value']:.2g}; the curve given the position law: "
@@ -560,7 +566,7 @@ def _speed_confound(out, tst) -> dict:
                "held-out data as well as this law in time (and adds nothing to it, "
                f"p = {c['p_value']:.2g}), so a speed-dependent friction (stribeck) is not ruled out")
     was = list(out.get("ambiguous_with") or []) if out.get("ambiguous") else []
-    out.update({"ambiguous": True, "ambiguous_with": was + [e for e in ["stribeck"] if e not in was],
+    out.update({"ambiguous": True, "ambiguous_with": was + [e for e in [rival] if e not in was],
                 "reason": "; ".join([r for r in [out.get("reason")] if r] + [why]), "confounded_with_speed": True})
     if position:
         out["position_vs_speed"] = True
@@ -629,7 +635,7 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
                 away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "periodic_residual",
                              **{k: v for k, v in t.items() if k != "significant"}})
                 continue
-        if ext.effect in comp.POSITION_FRICTION_LAWS and not ext.shared:
+        if ext.effect in comp.POSITION_LAWS and not ext.shared:
             if ext.joint not in speed_nuisance:
                 speed_nuisance[ext.joint] = comp.speed_law_nuisance(prep, ext.joint)
             c = comp.position_law_confounded(prep, model, fit, ext, alpha, min_gain,
