@@ -189,7 +189,11 @@ def test_stribeck_must_beat_the_periodic_residual(planted, survives):
     assert alone["significant"] and alone["rmse_reduction"] > 0.1, alone
     t = survives_periodic(prep, model, fit, ext, alpha=1e-4, min_gain=0.02)
     assert t["significant"] is survives, t
-    assert t["nuisance_columns"] >= 2
+    if planted == "periodic":
+        assert t["nuisance_columns"] >= 2
+    else:
+        # no periodic component lowers the held-out error of a log without one (competition.periodic_nuisance)
+        assert t.get("skipped") == "no periodic structure in the residual" or t["nuisance_columns"] >= 2, t
 
 
 def test_cli_diagnose_several_logs(tmp_path):
