@@ -29,7 +29,8 @@ Two checks that run before a candidate of :mod:`drake_est.diagnose.core` is acce
   passed at one speed (and in one direction, between two end points), and a friction level that changes with q,
   or a load that does, fits the misfit of a speed law of another shape or an asymmetric Coulomb level.  A
   position-dependent friction or load that is not significant given the free friction curve is reported as
-  ambiguous with ``stribeck`` (:func:`position_law_confounded`); it stays in the model.
+  ambiguous with ``stribeck``, or with ``asymmetric_coulomb`` when one friction level per direction explains a load
+  alone (:func:`position_law_confounded`); it stays in the model.
 """
 from __future__ import annotations
 
@@ -236,7 +237,7 @@ def survives_speed_law(prep, model, fit, ext, alpha: float, min_gain: float, nui
         # before and after a change (or at low and high energy) do not overlap, neither adds to the other: time and
         # speed are confounded in this log, and the law in time is not set aside for a curve that is no better
         back = _partial_test(prep, model, ext.joint, ext.cols[ext.joint], N, alpha, min_gain, solve)
-        t["speed_law_given_it"] = {k: back[k] for k in ("p_value", "rmse_reduction", "score")}
+        t["speed_law_given_it"] = _brief(back)
         if not back["significant"]:
             t["significant"] = True
             t["confounded_with_speed"] = True
@@ -250,11 +251,12 @@ def position_law_confounded(prep, model, fit, ext, alpha: float, min_gain: float
     friction level that changes with q and one that changes with |qd| give the same residual, e.g. the misfit of a
     Stribeck law of another shape; when each position is also passed in one direction, so do a load and a
     direction-dependent level (an asymmetric Coulomb friction; loop specs 2453 and 2662 at 10 Hz, where a load
-    was named for an asymmetric level and for a Lorentzian Stribeck law).  Unlike a law in time the finding is not set aside (it may be the step that lets a later,
-    smaller finding be seen); it is reported as ambiguous with ``stribeck`` (the vocabulary's speed law, of any
-    shape), or with ``asymmetric_coulomb`` when a load is explained as well by one friction level per direction
-    alone (``rival``).  Returns None when it does not apply or the finding is separated, else the reverse test (the
-    curve given the position law), the forward one and the rival."""
+    was named for an asymmetric level and for a Lorentzian Stribeck law).  Unlike a law in time the finding is not
+    set aside (it may be the step that lets a later, smaller finding be seen); it is reported as ambiguous with
+    ``stribeck`` (the vocabulary's speed law, of any shape), or with ``asymmetric_coulomb`` when a load is explained
+    as well by one friction level per direction alone (``rival``).  Returns None when it does not apply or the
+    finding is separated, else the reverse test (the curve given the position law), the forward one and the
+    rival."""
     if ext.effect not in POSITION_LAWS or ext.shared:
         return None
     N = speed_law_nuisance(prep, ext.joint) if nuisance is None else nuisance
@@ -264,9 +266,7 @@ def position_law_confounded(prep, model, fit, ext, alpha: float, min_gain: float
     if t["significant"]:
         return None
     back = _partial_test(prep, model, ext.joint, ext.cols[ext.joint], N, alpha, min_gain, solve)
-    out = {**{k: back[k] for k in ("p_value", "rmse_reduction", "score")},
-           "position_law_given_speed_law": {k: t[k] for k in ("p_value", "rmse_reduction", "score")},
-           "rival": "stribeck"}
+    out = {**_brief(back), "position_law_given_speed_law": _brief(t), "rival": "stribeck"}
     if ext.effect == "position_dependent_load":
         # the curve's simplest part: one level per direction (an asymmetric Coulomb friction); when that alone
         # explains the load as well, it is the rival, not a speed law
@@ -276,7 +276,7 @@ def position_law_confounded(prep, model, fit, ext, alpha: float, min_gain: float
         t2 = _partial_test(prep, model, ext.joint, level, ext.cols[ext.joint], alpha, min_gain, solve)
         if not t2["significant"]:
             out["rival"] = "asymmetric_coulomb"
-            out["position_law_given_direction_levels"] = {k: t2[k] for k in ("p_value", "rmse_reduction", "score")}
+            out["position_law_given_direction_levels"] = _brief(t2)
     return out
 
 
@@ -293,6 +293,11 @@ def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuis
     if N is None:
         return {"significant": True, "skipped": "no periodic structure in the residual"}
     return _partial_test(prep, model, ext.joint, N, ext.cols[ext.joint], alpha, min_gain, solve)
+
+
+def _brief(t) -> dict:
+    """The p-value, RMSE reduction and score of a partial test (:func:`_partial_test`), as reported."""
+    return {k: t[k] for k in ("p_value", "rmse_reduction", "score")}
 
 
 def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None) -> dict:

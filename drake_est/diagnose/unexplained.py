@@ -612,20 +612,18 @@ def next_experiments(prep, steps, duration) -> list:
                 v = np.abs(jd.v[jd.rows])
                 lo, hi = float(np.quantile(v, 0.05)), float(np.quantile(v, 0.95))
                 qa, qb = float(np.min(jd.q)), float(np.max(jd.q))
+                passes = (f"constant-speed passes of joint {j} over the same positions ({qa:.3g} to {qb:.3g}) at "
+                          f"three speeds from {lo:.3g} to {hi:.3g} per s, both directions")
                 if "position_dependent_load" in pair:
                     # a load confounded with direction levels or a speed curve (competition.position_law_confounded):
                     # the passes separate them while moving, the torque at rest separates a load from friction
-                    exp["experiment"] = (f"constant-speed passes of joint {j} over the same positions ({qa:.3g} to "
-                                         f"{qb:.3g}) at three speeds from {lo:.3g} to {hi:.3g} per s, both directions, "
-                                         "with rests of a few seconds at 5 positions across the range: a load keeps "
-                                         "its shape in position at every speed and in both directions and holds its "
-                                         "torque at rest, an asymmetric Coulomb level is the same offset at every "
-                                         "position and only while moving, a speed law moves with the speed")
+                    exp["experiment"] = (passes + ", with rests of a few seconds at 5 positions across the range: a "
+                                         "load keeps its shape in position at every speed and in both directions and "
+                                         "holds its torque at rest, an asymmetric Coulomb level is the same offset at "
+                                         "every position and only while moving, a speed law moves with the speed")
                 else:
-                    exp["experiment"] = (f"constant-speed passes of joint {j} over the same positions ({qa:.3g} to "
-                                         f"{qb:.3g}) at three speeds from {lo:.3g} to {hi:.3g} per s, both directions: "
-                                         "a position friction keeps its shape in position at every speed, a speed "
-                                         "law moves with the speed")
+                    exp["experiment"] = (passes + ": a position friction keeps its shape in position at every speed, "
+                                         "a speed law moves with the speed")
                 exp["speeds"] = [lo, float(np.sqrt(lo * hi)), hi]
                 exp["position_range_covered"] = [qa, qb]
             elif time_vs_speed and jd is not None:
