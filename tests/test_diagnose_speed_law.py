@@ -306,9 +306,11 @@ def test_position_friction_that_a_speed_curve_explains_is_not_named_in_spec_165(
     the Gaussian basis leaves a speed-shaped misfit that 16 position kernels take (2.5 % of the RMSE), once named
     ``ambiguous(position_dependent_friction|abrupt_change)``, neither of them planted, and in the seventh round also
     ambiguous with ``stribeck`` (a free friction curve of each direction explains all the kernels do; the rule is
-    tested on its own above).  Since the eighth round the finding, accepted after the Stribeck law and the
-    asymmetric level with 2.5 % while the residual still holds structure, is set aside as not confirmed
-    (core.finding_not_confirmed), and what is named is planted."""
+    tested on its own above).  From the eighth to the twelfth round the finding, accepted after the Stribeck law and
+    the asymmetric level with 2.5 % while the residual still held structure, was set aside as not confirmed
+    (core.finding_not_confirmed); that structure was the jerk test's false alarm (the viscous coefficient's error,
+    a nuisance column since the thirteenth round), and with a white final residual the position friction is
+    reported only as ambiguous with the planted Stribeck law: what is named outright is planted."""
     import sys
     from pathlib import Path
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -320,13 +322,14 @@ def test_position_friction_that_a_speed_curve_explains_is_not_named_in_spec_165(
     log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
                           sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
-    assert not [f for f in d["findings"] if f["effect"] == "position_dependent_friction"]
-    aside = [r for r in d["set_aside"] if r["effect"] == "position_dependent_friction"]
-    assert aside and aside[0]["not_confirmed"] and aside[0]["heldout_rmse_reduction"] < core.MIN_GAIN_NOT_WHITE
     planted = set(truth["effects"])
+    assert "stribeck" in planted and "position_dependent_friction" not in planted
+    pdf = [f for f in d["findings"] if f["effect"] == "position_dependent_friction"]
+    assert all("stribeck" in f.get("ambiguous_between", []) for f in pdf), pdf
     for f in d["findings"]:
         assert set(f.get("ambiguous_between", [f["effect"]])) & planted, f["effect"]
-    assert d["unexplained"]
+        if not f.get("ambiguous_between"):
+            assert f["effect"] in planted, f["effect"]
 
 
 def test_a_rival_within_min_gain_of_the_winners_rmse_is_not_separated():
