@@ -280,14 +280,18 @@ def position_law_confounded(prep, model, fit, ext, alpha: float, min_gain: float
     return out
 
 
-def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None) -> dict:
+def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None,
+                      any_law: bool = False) -> dict:
     """Partial held-out F-test of ``ext`` given the periodic nuisance of its joint (module docstring).
 
     ``solve(A, y, n_unpenalized)``: the least-squares solver of the search (the diagnosis passes its small
-    relative ridge on the extension columns, Eq. (6.8)); default plain least squares.
+    relative ridge on the extension columns, Eq. (6.8)); default plain least squares.  ``any_law``: test any
+    candidate that is not itself periodic (:data:`PERIODIC_PAIR`), not only the smooth speed/time laws of
+    :data:`CONFOUNDABLE` (the search asks it of every candidate ranked below one the periodic residual explained).
     Returns the test dict (``significant``: the candidate still explains held-out variance beyond the
     periodic alternative); ``{"significant": True, "skipped": ...}`` when it does not apply."""
-    if ext.effect not in CONFOUNDABLE or ext.shared:
+    applies = ext.effect not in PERIODIC_PAIR if any_law else ext.effect in CONFOUNDABLE
+    if not applies or ext.shared:
         return {"significant": True, "skipped": "not a smooth speed/time law"}
     N = periodic_nuisance(prep, model, fit, ext.joint) if nuisance is None else nuisance
     if N is None:
