@@ -102,6 +102,16 @@ def loop_cases(n: int):
     return out
 
 
+def loop_log(spec, effects=None):
+    """(Log, truth) of a closed-loop spec: a dict of :func:`loop_cases` or its index k (``loop_cases(k + 1)[k]``),
+    with its own effects or ``effects`` instead."""
+    from drake_est.diagnose.testbench_loop import generate
+    if not isinstance(spec, dict):
+        spec = loop_cases(int(spec) + 1)[int(spec)]
+    return generate(spec["effects"] if effects is None else effects, seed=spec["seed"], duration=spec["duration"],
+                    sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
+
+
 def synth_cases(n: int):
     """n specs for :func:`drake_est.synth.synthesize`: synth's single-joint effects on joint 1 (seeded)."""
     out = []
@@ -291,9 +301,7 @@ def _run_family(family, specs, rows, start=0, refused=None):
                                   noise_std=spec["noise_std"])
             robots = ["generic"]
         elif family == "loop":
-            from drake_est.diagnose.testbench_loop import generate
-            log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
-                                  sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
+            log, truth = loop_log(spec)
             nv = truth["not_visible"]
             robots = ["generic"]
         else:

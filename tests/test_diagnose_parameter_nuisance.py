@@ -12,16 +12,13 @@ import pytest
 
 import drake_est.diagnose.unexplained as U
 from drake_est.diagnose import diagnose
-from drake_est.diagnose.testbench_loop import generate
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 
 def _loop_spec(k):
-    from bench_diagnose_testbench import loop_cases
-    spec = loop_cases(k + 1)[k]
-    log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
-                          sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
+    from bench_diagnose_testbench import loop_log
+    log, truth = loop_log(k)
     return diagnose(log, robot="generic", seed=0, simulate=False).to_dict(), truth
 
 

@@ -11,16 +11,13 @@ from pathlib import Path
 import numpy as np
 
 from drake_est.diagnose import diagnose
-from drake_est.diagnose.testbench_loop import generate
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 
 def _log(k):
-    from bench_diagnose_testbench import loop_cases
-    spec = loop_cases(k + 1)[k]
-    return generate(spec["effects"], seed=spec["seed"], duration=spec["duration"], sample_rate=spec["sample_rate"],
-                    noise=spec["noise"], noise_std=spec["noise_std"])
+    from bench_diagnose_testbench import loop_log
+    return loop_log(k)
 
 
 def _val_rss(jd, A):

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 
 from drake_est.diagnose import diagnose
-from drake_est.diagnose.testbench_loop import generate
 from drake_est.diagnose.unexplained import one_sign_samples
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -37,10 +36,8 @@ def test_one_sign_samples_matches_a_sliding_window():
 
 
 def _loop_spec(k):
-    from bench_diagnose_testbench import loop_cases
-    spec = loop_cases(k + 1)[k]
-    log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
-                          sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
+    from bench_diagnose_testbench import loop_log
+    log, truth = loop_log(k)
     return diagnose(log, robot="generic", seed=0, simulate=False).to_dict(), truth
 
 
@@ -82,10 +79,8 @@ def test_null_log_starts_and_reversals_are_not_a_time_shift():
     """The seed of loop spec 85 without its backlash (a null log, p2p moves, 100 Hz, Student-t noise): with every
     moving sample in the time-shift test, the Coulomb sign error at starts and reversals reads as a shift holding
     more than the 3 % share; with the one-sign guard the log is clean."""
-    from bench_diagnose_testbench import loop_cases
-    spec = loop_cases(86)[85]
-    log, truth = generate({}, seed=spec["seed"], duration=spec["duration"], sample_rate=spec["sample_rate"],
-                          noise=spec["noise"], noise_std=spec["noise_std"])
+    from bench_diagnose_testbench import loop_log
+    log, truth = loop_log(85, effects={})
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert d["findings"] == [] and d["unexplained"] == [], d["unexplained"]
 

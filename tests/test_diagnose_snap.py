@@ -11,7 +11,6 @@ import numpy as np
 import scipy.signal
 
 from drake_est.diagnose import diagnose
-from drake_est.diagnose.testbench_loop import generate
 from drake_est.diagnose.unexplained import filter_snap_gain
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -34,11 +33,8 @@ def test_filter_snap_gain_is_the_savgol_error_on_a_quartic():
 
 
 def _loop_spec(k, effects=None):
-    from bench_diagnose_testbench import loop_cases
-    spec = loop_cases(k + 1)[k]
-    log, truth = generate(spec["effects"] if effects is None else effects, seed=spec["seed"],
-                          duration=spec["duration"], sample_rate=spec["sample_rate"], noise=spec["noise"],
-                          noise_std=spec["noise_std"])
+    from bench_diagnose_testbench import loop_log
+    log, truth = loop_log(k, effects)
     rep = diagnose(log, robot="generic", seed=0, simulate=False)
     return rep.to_dict(), truth, rep
 

@@ -213,13 +213,10 @@ def test_closed_loop_change_with_the_after_change_samples_kept_is_named():
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnose_testbench import loop_cases
+    from bench_diagnose_testbench import loop_log
 
     from drake_est.diagnose import diagnose
-    from drake_est.diagnose.testbench_loop import generate
-    s = loop_cases(51)[50]
-    log, truth = generate(s["effects"], seed=s["seed"], duration=s["duration"], sample_rate=s["sample_rate"],
-                          noise=s["noise"], noise_std=s["noise_std"])
+    log, truth = loop_log(50)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert [f["effect"] for f in d["findings"]] == ["abrupt_change"]
     f = d["findings"][0]
@@ -314,13 +311,10 @@ def test_position_friction_that_a_speed_curve_explains_is_not_named_in_spec_165(
     import sys
     from pathlib import Path
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnose_testbench import loop_cases
+    from bench_diagnose_testbench import loop_log
 
     from drake_est.diagnose import diagnose
-    from drake_est.diagnose.testbench_loop import generate
-    spec = loop_cases(166)[165]
-    log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
-                          sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
+    log, truth = loop_log(165)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     planted = set(truth["effects"])
     assert "stribeck" in planted and "position_dependent_friction" not in planted
@@ -385,14 +379,12 @@ def test_a_load_that_direction_levels_or_a_speed_curve_explain_is_not_named_alon
     import sys
     from pathlib import Path
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnose_testbench import judge, loop_cases
+    from bench_diagnose_testbench import judge, loop_cases, loop_log
     from drake_est.diagnose import diagnose
-    from drake_est.diagnose.testbench_loop import generate
 
     for k in (2453, 2662):
         spec = loop_cases(k + 1)[k]
-        log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
-                              sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
+        log, truth = loop_log(spec)
         d = json.loads(json.dumps(diagnose(log, robot="generic", seed=0, simulate=False).to_dict(), default=str))
         load = [f for f in d["findings"] if f["effect"] == "position_dependent_load"]
         assert load and load[0]["status"] == "ambiguous", d["findings"]

@@ -181,8 +181,7 @@ def test_diagnosis_spot_checks(k):
     from drake_est.diagnose import diagnose
     b = _bench()
     spec = b.loop_cases(k + 1)[k]
-    log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
-                          sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
+    log, truth = b.loop_log(spec)
     d = diagnose(log, robot="generic", simulate=False).to_dict()
     j = b.judge(spec, d, optional=truth["not_visible"])
     assert j["correct"], (spec, [f["effect"] for f in d["findings"]], d["unexplained"])
