@@ -280,6 +280,14 @@ def position_law_confounded(prep, model, fit, ext, alpha: float, min_gain: float
     return out
 
 
+def periodic_test_applies(ext, any_law: bool = False) -> bool:
+    """Whether :func:`survives_periodic` tests ``ext``: a joint's own smooth speed/time law (:data:`CONFOUNDABLE`), or
+    with ``any_law`` any of its own candidates that is not itself periodic (:data:`PERIODIC_PAIR`)."""
+    if ext.shared:
+        return False
+    return ext.effect not in PERIODIC_PAIR if any_law else ext.effect in CONFOUNDABLE
+
+
 def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None,
                       any_law: bool = False) -> dict:
     """Partial held-out F-test of ``ext`` given the periodic nuisance of its joint (module docstring).
@@ -290,8 +298,7 @@ def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuis
     :data:`CONFOUNDABLE` (the search asks it of every candidate ranked below one the periodic residual explained).
     Returns the test dict (``significant``: the candidate still explains held-out variance beyond the
     periodic alternative); ``{"significant": True, "skipped": ...}`` when it does not apply."""
-    applies = ext.effect not in PERIODIC_PAIR if any_law else ext.effect in CONFOUNDABLE
-    if not applies or ext.shared:
+    if not periodic_test_applies(ext, any_law):
         return {"significant": True, "skipped": "not a smooth speed/time law"}
     N = periodic_nuisance(prep, model, fit, ext.joint) if nuisance is None else nuisance
     if N is None:

@@ -629,8 +629,8 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
                 away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "speed_law",
                              **{k: v for k, v in t.items() if k != "significant"}})
                 continue
-        after = not ext.shared and ext.joint in periodic_led and ext.effect not in comp.PERIODIC_PAIR
-        if (ext.effect in comp.CONFOUNDABLE or after) and not ext.shared:
+        after = ext.joint in periodic_led
+        if comp.periodic_test_applies(ext, after):
             if ext.joint not in nuisance:
                 nuisance[ext.joint] = comp.periodic_nuisance(prep, model, fit, ext.joint)
             t = comp.survives_periodic(prep, model, fit, ext, alpha, min_gain, nuisance=nuisance[ext.joint],

@@ -186,8 +186,8 @@ def _derivative_nuisance(prep, jd, idx):
     return cols, jerk
 
 
-#: the columns of :func:`_derivative_nuisance` that the snap test keeps (all but the snap itself)
-NUISANCE_WITHOUT_SNAP = [0, 1, 3, 4, 5]
+#: the snap's column in :func:`_derivative_nuisance` (the snap test keeps every other one)
+SNAP_COLUMN = 2
 
 
 def _friction_at(model, fit, jd, j, idx, v=None):
@@ -308,7 +308,7 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     r = _anova(jerk, e)
     # the quantization guard compares with the variance of this residual (not of the selected samples')
     return {"jerk_excluded_samples": None if r is None else (*r, float(np.var(e))),
-            "snap_excluded_samples": snap_beyond_filter_error(prep, jd, idx, e_raw, N[:, NUISANCE_WITHOUT_SNAP])}
+            "snap_excluded_samples": snap_beyond_filter_error(prep, jd, idx, e_raw, np.delete(N, SNAP_COLUMN, axis=1))}
 
 
 def filter_snap_gain(window_samples, polyorder, h):
