@@ -49,15 +49,19 @@ SIGN_GUARD_S = 0.1
 #: (:data:`~drake_est.diagnose.nominal.DERIV_WINDOW_S`), not where the 7-sample minimum stretches it (below 70 Hz;
 #: at 50 Hz, 0.12 s, it flagged a null log and a vocabulary log on outlying snap samples)
 SNAP_MAX_WINDOW_S = 0.1
-#: quantization guard of the snap test, in torque ADC steps: rounding leaves an error of at most half a step per
-#: sample, and the part of it that any set of regressors fits has an RMS no larger than the error's own, so a
-#: snap term whose fitted RMS exceeds half a step is not the ADC's.
-SNAP_ADC_GUARD_STEPS = 0.5
-#: the same guard for the other tests: one step.  The quantized null logs' jerk structure of up to 0.79 step RMS
-#: (loop spec 370) was the error of the identified viscous coefficient, now a nuisance column
-#: (:func:`_derivative_nuisance`), but the derivative filter's error at jumps of the jerk remains: the open-loop
-#: testbench's null spec 101 (50 Hz, quantized) holds 0.58 step of it
+#: quantization guard of the ANOVA tests (over position, velocity, acceleration, time, and the autocorrelation), in
+#: torque ADC steps: rounding leaves an error of at most half a step per sample that follows the torque level (one
+#: error per speed level on a steady move), and the part of it that any set of regressors fits has an RMS no larger
+#: than the error's own; a structure whose RMS is below one step is not reported.  The left-out-sample tests (jerk,
+#: snap, time shift: :data:`QUANTIZATION_NUISANCE_TESTS`) regress that error out (:func:`quantization_nuisance`) and
+#: have no guard where the derivative window is short (:func:`short_derivative_window`); with a longer window the
+#: derivative filter's error at jumps of the jerk exceeds what the nuisance columns follow (the open-loop
+#: testbench's null spec 101, 50 Hz, quantized: 0.58 step of it over jerk), and the one-step guard stays.
 ADC_GUARD_STEPS = 1.0
+#: harmonics of the rounding error of a quantized torque (:func:`quantization_nuisance`)
+QUANT_HARMONICS = 3
+#: the tests whose nuisance columns include the rounding error of a quantized torque (no ADC guard)
+QUANTIZATION_NUISANCE_TESTS = ("jerk_excluded_samples", "snap_excluded_samples", "time_shift_torque_vs_position")
 N_BINS = 20
 #: fewest accelerating samples for the left-out-sample tests (10 per ANOVA bin)
 MIN_EXCLUDED_SAMPLES = 200
@@ -186,6 +190,28 @@ def _derivative_nuisance(prep, jd, idx):
     return cols, jerk
 
 
+def short_derivative_window(prep, jd) -> bool:
+    """Whether the log's derivative window spans at most :data:`SNAP_MAX_WINDOW_S`, where the first terms of the
+    filter error's Taylor series (the snap, then the sixth derivative) describe it."""
+    der = prep.log.meta.get("derivatives") or {}
+    w = der.get("window_samples")
+    if not w:
+        return False
+    h = float(np.median(np.diff(jd.t)))
+    return (int(w) - 1) * h <= SNAP_MAX_WINDOW_S + 1e-9
+
+
+def quantization_nuisance(M, step, n_harmonics=QUANT_HARMONICS):
+    """Columns sin(2 pi k M / step), cos(2 pi k M / step), k = 1 .. ``n_harmonics``, of the model torque ``M``: the
+    rounding error of a torque quantized with ``step`` (little noise before the ADC) is a sawtooth in the torque
+    level, periodic with period ``step``; where the model torque is close to the true one, these columns carry
+    that deterministic error (a nuisance, not evidence).  None when ``step`` is 0."""
+    if not step or step <= 0:
+        return None
+    ph = 2.0 * np.pi * np.asarray(M, float) / step
+    return np.column_stack([f(k * ph) for k in range(1, n_harmonics + 1) for f in (np.sin, np.cos)])
+
+
 #: the snap's column in :func:`_derivative_nuisance` (the snap test keeps every other one)
 SNAP_COLUMN = 2
 
@@ -211,7 +237,8 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     e = tau - M is regressed on the odd difference D_k = (M(t - k h) - M(t + k h)) / 2 ~ -k h dM/dt for
     shifts k = 1 .. K (K h <= ``max_shift_s``), after an offset, the inertia (qdd), the derivative-filter
     error (snap, and the re-smoothing error :func:`_resmoothing_error`) and the viscous and Coulomb errors (qd,
-    sign(qd)) are regressed out.  A delay d between torque
+    sign(qd)) are regressed out, and on a quantized torque the harmonics of its rounding error
+    (:func:`quantization_nuisance`).  A delay d between torque
     and position samples leaves
     e = M(t - d) - M(t), i.e. mostly the k = d/h column; a zero-phase derivative filter leaves an even error
     that the odd difference does not pick up.  Returns (p, share, shift_s, var_e) for the best k (p
@@ -243,6 +270,10 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     M[allk] = jd.rb[allk] + Mf
     e = jd.tau[idx] - M[idx]
     Nu, _ = _derivative_nuisance(prep, jd, idx)
+    from drake_est.diagnose.nominal import joint_tau_step
+    Q = quantization_nuisance(M[idx], joint_tau_step(prep, j))
+    if Q is not None:
+        Nu = np.hstack([Nu, Q])
     P = lambda x: x - Nu @ np.linalg.lstsq(Nu, x, rcond=None)[0]   # noqa: E731
     e = P(e)
     ss = float(e @ e)
@@ -278,8 +309,9 @@ def _model_off_selection(prep, fit):
 def _excluded_moving(prep, fit, j, n_max=20000):
     """ANOVA over jerk of the final model's residual on the *moving but accelerating* samples that
     the data selection (9.9) left out (a delay between torque and position, backlash or an inertia error
-    shows there first), where the velocity keeps one sign for ``SIGN_GUARD_S`` on both sides.  The final model
-    is evaluated at those samples through the same columns
+    shows there first), where the velocity keeps one sign for ``SIGN_GUARD_S`` on both sides, after the nuisance
+    columns (:func:`_derivative_nuisance`, and on a quantized torque :func:`quantization_nuisance` of the model
+    torque) are regressed out.  The final model is evaluated at those samples through the same columns
     (:func:`~drake_est.identification.friction.extensions.columns_at`); None when an extension cannot be
     evaluated there (gear coupling, payload), for robot models (inverse dynamics only at the selected rows)
     or when too few such samples exist; else {variable: (p, share, where) or None}."""
@@ -300,6 +332,10 @@ def _excluded_moving(prep, fit, j, n_max=20000):
         return None
     e_raw = (jd.tau - jd.rb)[idx] - pred
     N, jerk_all = _derivative_nuisance(prep, jd, idx)
+    from drake_est.diagnose.nominal import joint_tau_step
+    Q = quantization_nuisance(jd.rb[idx] + pred, joint_tau_step(prep, j))
+    if Q is not None:
+        N = np.hstack([N, Q])
     jerk = jerk_all[idx]
     e = e_raw - N @ np.linalg.lstsq(N, e_raw, rcond=None)[0]
     # jerk: a delay d between torque and position samples leaves -d dtau/dt = -d (J jerk + kv qdd + ...);
@@ -329,7 +365,8 @@ def snap_beyond_filter_error(prep, jd, idx, e_raw, nuisance):
     derivative (the filter error's next term) are regressed out.  An elastic gear (motor-side encoder) leaves about -(J_load^2 / k) snap below its resonance, a
     term no axis model has.  The snap is the filter's second derivative of the smoothed qdd.  Only where the window
     spans at most ``SNAP_MAX_WINDOW_S``.  ``nuisance``: the offset, qdd, re-smoothing error, qd and sign(qd) columns at
-    ``idx`` (those of :func:`_derivative_nuisance`, without its snap).  Returns (p, share, coefficient [N m s^4 per rad],
+    ``idx`` (those of :func:`_derivative_nuisance`, without its snap), and on a quantized torque the harmonics of its
+    rounding error (:func:`quantization_nuisance`).  Returns (p, share, coefficient [N m s^4 per rad],
     variance of the residual after the nuisance, snap bin centres, mean residual per bin) or None."""
     from scipy.signal import savgol_filter
     der = prep.log.meta.get("derivatives") or {}
@@ -337,7 +374,7 @@ def snap_beyond_filter_error(prep, jd, idx, e_raw, nuisance):
     if not w or po is None or w >= jd.a.size or idx.size < MIN_EXCLUDED_SAMPLES:
         return None
     h = float(np.median(np.diff(jd.t)))
-    if (int(w) - 1) * h > SNAP_MAX_WINDOW_S + 1e-9:
+    if not short_derivative_window(prep, jd):
         return None
     snap_all = savgol_filter(jd.a, int(w), int(po), deriv=2, delta=h)
     snap = snap_all[idx]
@@ -551,6 +588,7 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
     n_tests = max(len(tests), 1)
     from drake_est.diagnose.nominal import joint_tau_step
     steps = {j: joint_tau_step(prep, j) for j in prep.joints}
+    short = {j: short_derivative_window(prep, jd) for j, jd in prep.joints.items()}
     var = {j: float(np.var((jd.y - fit.pred[j])[jd.val])) for j, jd in prep.joints.items()}
     for j, name, r in tests:
         if name == "velocity_reversals":
@@ -560,10 +598,10 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
             continue
         p, share, where = r[:3]
         v_e = r[3] if len(r) > 3 else var[j]
-        # a quantized torque leaves a deterministic error of at most half a step that follows the torque level (the
-        # snap test: half a step; the others one step, ADC_GUARD_STEPS)
-        guard = steps[j] * (SNAP_ADC_GUARD_STEPS if name == "snap_excluded_samples" else ADC_GUARD_STEPS)
-        if steps[j] > 0 and np.sqrt(share * v_e) < guard:
+        # a quantized torque leaves a deterministic error of at most half a step that follows the torque level: the
+        # ANOVA tests do not report structure below ADC_GUARD_STEPS; the left-out-sample tests regress it out
+        guarded = name not in QUANTIZATION_NUISANCE_TESTS or not short[j]
+        if steps[j] > 0 and guarded and np.sqrt(share * v_e) < steps[j] * ADC_GUARD_STEPS:
             continue
         need = max(min_share, MIN_SHARE_EXCLUDED) if name.endswith("_excluded_samples") else min_share
         if p < alpha / n_tests and share >= need:
