@@ -17,10 +17,11 @@ from drake_est.diagnose import diagnose
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 
-def _loop_spec(k):
+def _loop_spec(k, report=False):
     from bench_diagnose_testbench import loop_log
     log, truth = loop_log(k)
-    return diagnose(log, robot="generic", seed=0, simulate=False).to_dict(), truth
+    rep = diagnose(log, robot="generic", seed=0, simulate=False)
+    return (rep.to_dict(), truth, rep) if report else (rep.to_dict(), truth)
 
 
 def test_quantization_nuisance_carries_the_rounding_error_of_a_slowly_dithered_adc():
@@ -43,14 +44,28 @@ def test_quantization_nuisance_carries_the_rounding_error_of_a_slowly_dithered_a
     assert U.quantization_nuisance(tau, 0.0) is None
 
 
-def test_a_quantized_sensor_delay_is_reported_without_the_guard_and_hidden_with_it(monkeypatch):
+def test_a_quantized_sensor_delay_is_reported_without_the_guard_and_hidden_with_it(monkeypatch, tmp_path):
     """Loop spec 373 (250 Hz, quantized torque, a delay between torque and position samples): the time-shift and
     jerk tests see it at a fraction of an ADC step, once the rounding error is a nuisance; with the one-step guard
-    on every test (as before) it ended as "none"."""
-    d, truth = _loop_spec(373)
+    on every test (as before) it ended as "none".  Each entry says so, and carries the profile its plot shows (the
+    mean residual over bins of the jerk, or of the odd model-torque difference at the best shift)."""
+    d, truth, rep = _loop_spec(373, report=True)
     assert truth["effects"] == ["sensor_delay"]
     assert d["findings"] == []
-    assert {"time_shift_torque_vs_position", "jerk_excluded_samples"} <= {u["variable"] for u in d["unexplained"]}
+    got = {u["variable"]: u for u in d["unexplained"]}
+    assert {"time_shift_torque_vs_position", "jerk_excluded_samples"} <= set(got)
+    for u in got.values():
+        if u["variable"] in U.QUANTIZATION_NUISANCE_TESTS:
+            assert u["adc_step"] > 0 and "rounding error of the quantized torque" in u["test"], u
+    for name, key in (("jerk_excluded_samples", "profile_jerk"), ("time_shift_torque_vs_position",
+                                                                  "profile_torque_difference")):
+        x, m = got[name][key], got[name]["profile_mean_residual"]
+        assert len(x) == len(m) >= 10 and np.all(np.diff(x) > 0)
+    # a delay: the residual follows the odd difference, with opposite signs at its two ends
+    m = got["time_shift_torque_vs_position"]["profile_mean_residual"]
+    assert m[0] * m[-1] < 0
+    out = rep.write(tmp_path)
+    assert (out / "unexplained.png").stat().st_size > 10_000
     monkeypatch.setattr(U, "QUANTIZATION_NUISANCE_TESTS", ())
     d1, _ = _loop_spec(373)
     assert d1["findings"] == [] and d1["unexplained"] == [], d1["unexplained"]

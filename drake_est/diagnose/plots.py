@@ -77,6 +77,17 @@ def write_plots(rep, out) -> list:
                 ax.axhline(0.0, color="0.5", lw=0.8)
                 ax.set_xlabel("snap d^4q/dt^4 [rad/s^4] (accelerating samples left out by (9.9))")
                 ax.set_ylabel("mean residual")
+            elif "profile_jerk" in u:     # the jerk test of the left-out samples: mean residual per jerk bin
+                ax.plot(u["profile_jerk"], u["profile_mean_residual"], ".-")
+                ax.axhline(0.0, color="0.5", lw=0.8)
+                ax.set_xlabel("jerk d^3q/dt^3 [rad/s^3] (accelerating samples left out by (9.9))")
+                ax.set_ylabel("mean residual (nuisance columns out)")
+            elif "profile_torque_difference" in u:     # the time-shift test: mean residual per bin of the odd difference
+                ax.plot(u["profile_torque_difference"], u["profile_mean_residual"], ".-")
+                ax.axhline(0.0, color="0.5", lw=0.8)
+                ax.set_xlabel(f"(M(t - d) - M(t + d)) / 2, model torque, d = {u['best_shift_s']:.3g} s "
+                              "(nuisance columns out)")
+                ax.set_ylabel("mean residual (nuisance columns out)")
             else:
                 ax.plot(xs[u["variable"]](jd, rows), r1, ".", ms=1.5, alpha=0.4)
                 ax.set_xlabel(u["variable"])

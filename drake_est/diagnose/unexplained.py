@@ -113,6 +113,17 @@ def _anova(x, e, n_bins=N_BINS):
     return float(scipy.stats.f.sf(F, k - 1, n - k)), ss_b / max(ss_t, 1e-300), float(where)
 
 
+def bin_profile(x, e, n_bins=N_BINS):
+    """Where a structure lies, for the plot: the mean of ``e`` over the quantile bins of ``x`` (bin centres, bin
+    means), as lists."""
+    edges, b = _quantile_bins(x, n_bins)
+    cnt = np.bincount(b, minlength=max(edges.size - 1, 1))
+    ok = cnt > 0
+    centres = np.bincount(b, weights=x, minlength=cnt.size)[ok] / cnt[ok]
+    means = np.bincount(b, weights=e, minlength=cnt.size)[ok] / cnt[ok]
+    return [float(v) for v in centres], [float(v) for v in means]
+
+
 def _whiteness(e, block, n_lags=N_LAGS):
     n = e.size
     if n < 10 * n_lags:
@@ -241,7 +252,8 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     (:func:`quantization_nuisance`).  A delay d between torque
     and position samples leaves
     e = M(t - d) - M(t), i.e. mostly the k = d/h column; a zero-phase derivative filter leaves an even error
-    that the odd difference does not pick up.  Returns (p, share, shift_s, var_e) for the best k (p
+    that the odd difference does not pick up.  Returns (p, share, shift_s, var_e, D_k bin centres, mean residual
+    per bin) for the best k (p
     Bonferroni-corrected over the K shifts tried) or None; generic axes only.  Away from the reversals, where
     dM/dt changes slowly, the D_k are nearly proportional to k and the best k is a weak estimate of the
     delay; the velocity-reversal test's Coulomb-step equivalent (:func:`reversal_impulse`) is the better one."""
@@ -293,7 +305,8 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     dof = max(n - Nu.shape[1] - 1, 1)
     F = gain / max((ss - gain) / dof, 1e-300)
     p = min(1.0, K * float(scipy.stats.f.sf(F, 1, dof)))
-    return p, gain / ss, k * h, float(ss / n)
+    # where it lies: the mean residual over quantile bins of the best odd difference D_k (a plot, not the test)
+    return (p, gain / ss, k * h, float(ss / n), *bin_profile(P(0.5 * (M[idx - k] - M[idx + k])), e))
 
 
 def _model_off_selection(prep, fit):
@@ -314,7 +327,9 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     torque) are regressed out.  The final model is evaluated at those samples through the same columns
     (:func:`~drake_est.identification.friction.extensions.columns_at`); None when an extension cannot be
     evaluated there (gear coupling, payload), for robot models (inverse dynamics only at the selected rows)
-    or when too few such samples exist; else {variable: (p, share, where) or None}."""
+    or when too few such samples exist; else {variable: (p, share, where, residual variance, profile...) or
+    None} (the jerk entry's profile: jerk bin centres and the mean residual per bin; the snap entry: see
+    :func:`snap_beyond_filter_error`)."""
     from drake_est.identification.friction.extensions import columns_at
     jd = prep.joints[j]
     model = _model_off_selection(prep, fit)
@@ -343,7 +358,7 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     # (torque missing while the motor crosses the dead band after a reversal) shows there too
     r = _anova(jerk, e)
     # the quantization guard compares with the variance of this residual (not of the selected samples')
-    return {"jerk_excluded_samples": None if r is None else (*r, float(np.var(e))),
+    return {"jerk_excluded_samples": None if r is None else (*r, float(np.var(e)), *bin_profile(jerk, e)),
             "snap_excluded_samples": snap_beyond_filter_error(prep, jd, idx, e_raw, np.delete(N, SNAP_COLUMN, axis=1))}
 
 
@@ -396,12 +411,7 @@ def snap_beyond_filter_error(prep, jd, idx, e_raw, nuisance):
     F = gain / max((ss - gain) / dof, 1e-300)
     p = float(scipy.stats.f.sf(F, 1, dof))
     # where it lies: the mean residual over 20 quantile bins of the snap (a plot, not the test)
-    edges, b = _quantile_bins(snap)
-    cnt = np.bincount(b, minlength=max(edges.size - 1, 1))
-    ok = cnt > 0
-    centres = np.bincount(b, weights=snap, minlength=cnt.size)[ok] / cnt[ok]
-    means = np.bincount(b, weights=e, minlength=cnt.size)[ok] / cnt[ok]
-    return p, gain / ss, coef, ss / n, [float(x) for x in centres], [float(x) for x in means]
+    return (p, gain / ss, coef, ss / n, *bin_profile(snap, e))
 
 
 def reversal_times(t, q, v, half_s=0.02):
@@ -618,11 +628,19 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
                 d["profile_snap"], d["profile_mean_residual"] = r[4], r[5]
             elif name == "time_shift_torque_vs_position":
                 d["test"] = "F-test of the odd model-torque difference (torque = model at a shifted time)"
+                d["profile_torque_difference"], d["profile_mean_residual"] = r[4], r[5]
                 d["samples"] = (f"moving samples with one velocity sign for {SIGN_GUARD_S:g} s (or the largest shift) "
                                 "on both sides")
                 d["best_shift_s"] = where
             else:
                 d["largest_deviation_bin_upper_edge"] = where
+                if name == "jerk_excluded_samples":
+                    d["profile_jerk"], d["profile_mean_residual"] = r[4], r[5]
+            if steps[j] > 0 and name in QUANTIZATION_NUISANCE_TESTS:
+                from drake_est.diagnose.report import torque_unit
+                d["test"] += (f"; the rounding error of the quantized torque ({QUANT_HARMONICS} harmonics, ADC step "
+                              f"{steps[j]:.3g} {torque_unit(prep.log)}) regressed out")
+                d["adc_step"] = float(steps[j])
             out.append(d)
     return sorted(out, key=lambda d: -d["share_of_residual_variance"])
 
