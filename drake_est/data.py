@@ -544,6 +544,14 @@ def degrees_warnings(log: Log, limits=None, prismatic=()) -> list:
     return out
 
 
+def torque_unit(log: Log) -> str:
+    """The unit of the logged torque column: N for linear (prismatic) axes, the log's own (e.g. A for a motor
+    current) when it says so, else N m."""
+    if log.meta.get("tau_unit"):
+        return str(log.meta["tau_unit"])
+    return "N" if str(log.meta.get("axis_type", "")).lower() in ("prismatic", "linear") else "N m"
+
+
 def save_log(log: Log, path) -> Path:
     """Write a log as CSV (``.csv``) or NPZ (``.npz``) in the format read by :func:`load_log`."""
     path = Path(path)

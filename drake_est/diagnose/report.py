@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_est.data import torque_unit
 from drake_est.diagnose.competition import ambiguous_rivals
 from drake_est.diagnose.nominal import OUTLIER_MAX_SHARE, n_blocks_for
 from drake_est.diagnose.multilog import across_logs_evidence, per_log_table
@@ -29,14 +30,6 @@ EFFECT_TEXT = {
     "position_dependent_load": "a direction-independent torque that depends on position (gravity, springs, "
                                "cables), which the generic axis model lacks",
 }
-
-
-def torque_unit(log) -> str:
-    """The unit of the logged torque column: N for linear (prismatic) axes, the log's own (e.g. A for a motor
-    current) when it says so, else N m."""
-    if log.meta.get("tau_unit"):
-        return str(log.meta["tau_unit"])
-    return "N" if str(log.meta.get("axis_type", "")).lower() in ("prismatic", "linear") else "N m"
 
 
 def _r(x, nd=6):

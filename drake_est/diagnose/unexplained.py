@@ -31,6 +31,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.stats
 
+from drake_est.data import torque_unit
+
 ALPHA_UNEXPLAINED = 1e-3
 MIN_SHARE = 0.03
 #: on the accelerating samples left out by (9.9) the accelerations themselves are less accurate (derivative
@@ -637,7 +639,6 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
                 if name == "jerk_excluded_samples":
                     d["profile_jerk"], d["profile_mean_residual"] = r[4], r[5]
             if steps[j] > 0 and name in QUANTIZATION_NUISANCE_TESTS:
-                from drake_est.diagnose.report import torque_unit
                 d["test"] += (f"; the rounding error of the quantized torque ({QUANT_HARMONICS} harmonics, ADC step "
                               f"{steps[j]:.3g} {torque_unit(prep.log)}) regressed out")
                 d["adc_step"] = float(steps[j])
