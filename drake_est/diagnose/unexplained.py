@@ -186,7 +186,7 @@ def _resmoothing_error(prep, jd):
     return savgol_filter(jd.a, w, 3) - jd.a
 
 
-def _derivative_nuisance(prep, jd, idx):
+def _derivative_nuisance(prep, jd, idx, model_torque=None):
     """Nuisance columns of the left-out-sample tests at samples ``idx`` (not evidence): an offset, an error of the
     identified inertia (qdd), the error of the smoothed second derivative (a Savitzky-Golay qdd errs by about
     c h^2 d^4q/dt^4, i.e. the snap, and by more at corners of the acceleration, which the re-smoothing error
@@ -195,11 +195,18 @@ def _derivative_nuisance(prep, jd, idx):
     moves the velocity of the accelerating samples follows the jerk (a quintic move starts with the largest jerk at
     rest and has the most negative one at its peak speed), so a viscous coefficient 10-20 % off, well within its
     estimation error on a closed-loop log, left structure over jerk on null logs (loop specs 370, 1688, 1734, 2612:
-    with the true coefficients, or with these columns, none).  Returns (columns, jerk at every sample)."""
+    with the true coefficients, or with these columns, none).  With the model torque at ``idx``
+    (``model_torque``) and a quantized torque, the harmonics of its rounding error follow
+    (:func:`quantization_nuisance`, after the other columns).  Returns (columns, jerk at every sample)."""
     jerk = np.gradient(jd.a, jd.t)
     snap = np.gradient(jerk, jd.t)
     cols = np.column_stack([np.ones(idx.size), jd.a[idx], snap[idx], _resmoothing_error(prep, jd)[idx],
                             jd.v[idx], np.sign(jd.v[idx])])
+    if model_torque is not None:
+        from drake_est.diagnose.nominal import joint_tau_step
+        Q = quantization_nuisance(model_torque, joint_tau_step(prep, jd.joint))
+        if Q is not None:
+            cols = np.hstack([cols, Q])
     return cols, jerk
 
 
@@ -283,11 +290,7 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     M = np.full(N, np.nan)
     M[allk] = jd.rb[allk] + Mf
     e = jd.tau[idx] - M[idx]
-    Nu, _ = _derivative_nuisance(prep, jd, idx)
-    from drake_est.diagnose.nominal import joint_tau_step
-    Q = quantization_nuisance(M[idx], joint_tau_step(prep, j))
-    if Q is not None:
-        Nu = np.hstack([Nu, Q])
+    Nu, _ = _derivative_nuisance(prep, jd, idx, model_torque=M[idx])
     P = lambda x: x - Nu @ np.linalg.lstsq(Nu, x, rcond=None)[0]   # noqa: E731
     e = P(e)
     ss = float(e @ e)
@@ -348,11 +351,7 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     if pred is None:
         return None
     e_raw = (jd.tau - jd.rb)[idx] - pred
-    N, jerk_all = _derivative_nuisance(prep, jd, idx)
-    from drake_est.diagnose.nominal import joint_tau_step
-    Q = quantization_nuisance(jd.rb[idx] + pred, joint_tau_step(prep, j))
-    if Q is not None:
-        N = np.hstack([N, Q])
+    N, jerk_all = _derivative_nuisance(prep, jd, idx, model_torque=jd.rb[idx] + pred)
     jerk = jerk_all[idx]
     e = e_raw - N @ np.linalg.lstsq(N, e_raw, rcond=None)[0]
     # jerk: a delay d between torque and position samples leaves -d dtau/dt = -d (J jerk + kv qdd + ...);
