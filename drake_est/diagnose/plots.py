@@ -77,6 +77,12 @@ def write_plots(rep, out) -> list:
                 ax.axhline(0.0, color="0.5", lw=0.8)
                 ax.set_xlabel("snap d^4q/dt^4 [rad/s^4] (accelerating samples left out by (9.9))")
                 ax.set_ylabel("mean residual")
+            elif "profile_fitted_jerk_snap" in u:     # the matched-filter test: mean residual per bin of its fit
+                ax.plot(u["profile_fitted_jerk_snap"], u["profile_mean_residual"], ".-")
+                ax.axhline(0.0, color="0.5", lw=0.8)
+                ax.set_xlabel("fitted jerk and snap part of the residual, torque smoothed like qdd "
+                              "(accelerating samples left out by (9.9))")
+                ax.set_ylabel("mean residual (nuisance columns out)")
             elif "profile_jerk" in u:     # the jerk test of the left-out samples: mean residual per jerk bin
                 ax.plot(u["profile_jerk"], u["profile_mean_residual"], ".-")
                 ax.axhline(0.0, color="0.5", lw=0.8)

@@ -14,6 +14,9 @@ a fixed family-wise false-alarm rate (Bonferroni over the tests):
   (:func:`_time_shift`); both only on samples whose velocity keeps one sign for ``SIGN_GUARD_S`` on both sides.
 * on the same left-out samples, an F-test of the residual's dependence on the snap d^4q/dt^4 beyond the
   derivative filter's own error (:func:`snap_beyond_filter_error`: an elastic gear shows there).
+* on the same left-out samples, one filter length apart, an F-test of jerk and snap in the residual whose torque is
+  smoothed by the kernel that turns the second difference of the positions into the filtered qdd
+  (:func:`matched_filter_test`: no derivative-filter error is left to model; an elastic gear, a delay).
 * at velocity reversals (any sample rate, generic axes): the momentum balance over a window around each
   reversal, the torque impulse minus J dv, the viscous and the Coulomb impulse (its sign switched at the
   stationary point of the measured position), t-tested across reversals for a mean that inertia,
@@ -21,7 +24,7 @@ a fixed family-wise false-alarm rate (Bonferroni over the tests):
 
 A structure is reported when its p-value is below ``ALPHA_UNEXPLAINED / n_tests`` *and* it holds at least
 ``MIN_SHARE`` of the residual variance (between-bin or predictable share; ``MIN_SHARE_EXCLUDED`` for the jerk
-ANOVA on the left-out samples).  No cause is named for it.
+ANOVA on the left-out samples, ``MIN_SHARE_MATCHED`` for the matched-filter test).  No cause is named for it.
 
 :func:`next_experiments` says which experiment would decide between candidates the log cannot separate
 or cannot test (too few low speeds, one speed only, too short for a thermal drift).
@@ -63,7 +66,10 @@ ADC_GUARD_STEPS = 1.0
 #: harmonics of the rounding error of a quantized torque (:func:`quantization_nuisance`)
 QUANT_HARMONICS = 3
 #: the tests whose nuisance columns include the rounding error of a quantized torque (no ADC guard)
-QUANTIZATION_NUISANCE_TESTS = ("jerk_excluded_samples", "snap_excluded_samples", "time_shift_torque_vs_position")
+QUANTIZATION_NUISANCE_TESTS = ("jerk_excluded_samples", "snap_excluded_samples", "time_shift_torque_vs_position",
+                               "jerk_snap_matched_filter")
+#: the matched-filter test (:func:`matched_filter_test`) must hold this much of its residual's variance
+MIN_SHARE_MATCHED = 0.15
 N_BINS = 20
 #: fewest accelerating samples for the left-out-sample tests (10 per ANOVA bin)
 MIN_EXCLUDED_SAMPLES = 200
@@ -415,6 +421,81 @@ def snap_beyond_filter_error(prep, jd, idx, e_raw, nuisance):
     return (p, gain / ss, coef, ss / n, *bin_profile(snap, e))
 
 
+def acceleration_filter_kernel(window_samples, polyorder, h):
+    """g: the smoothing kernel of the Savitzky-Golay second derivative.  Its coefficients c (``window_samples``,
+    ``polyorder``, sample interval ``h``) sum to zero with zero first moment, so c is the second difference of
+    a shorter kernel g (length ``window_samples`` - 2, sum 1): qdd_hat = g * (q[n+1] - 2 q[n] + q[n-1]) / h^2
+    exactly.  The same g applied to the torque compares like with like (:func:`matched_filter_test`)."""
+    from scipy.signal import savgol_coeffs
+    c = savgol_coeffs(int(window_samples), int(polyorder), deriv=2, delta=h, use="conv")
+    return h * h * np.cumsum(np.cumsum(c))[:-2]
+
+
+def matched_filter_test(prep, fit, j):
+    """The jerk and snap of the residual with the torque smoothed like the acceleration.  The model's
+    qdd_hat is the kernel g (:func:`acceleration_filter_kernel`) applied to the second difference of the
+    positions, so r = g * (tau - J d2q - F) = g * tau - J qdd_hat - g * F (F: the final model's other terms,
+    evaluated at every sample) holds no derivative-filter error: for a rigid axis it is the smoothed noise.  On
+    the accelerating samples that (9.9) left out whose velocity keeps one sign for ``SIGN_GUARD_S`` (and the
+    kernel's half width) on both sides, taken one kernel length apart (independent noise), the jerk and
+    snap (the filter's first and second derivatives of qdd_hat) are F-tested after an offset and the inertia,
+    viscous and Coulomb errors (qdd_hat, g * qd, g * sign(qd)) and, on a quantized torque, the smoothed harmonics
+    of its rounding error (:func:`quantization_nuisance`) are regressed out.  A delay between torque and position
+    leaves about -d J jerk; an elastic gear (motor-side encoder) leaves -(J_load^2 / k) snap through its
+    anti-resonance.  Generic axes, uniform sampling, windows of at most ``SNAP_MAX_WINDOW_S`` (where the second
+    difference is the acceleration to within h^2 / 12 snap).  Returns (p, share, (jerk coefficient [torque s^3 per
+    rad], snap coefficient [torque s^4 per rad]), variance of the residual after the nuisance, bin centres of the
+    fitted part, mean residual per bin) or None."""
+    from scipy.signal import savgol_filter
+    jd = prep.joints[j]
+    der = prep.log.meta.get("derivatives") or {}
+    w, po = der.get("window_samples"), der.get("polyorder")
+    J = jd.counts.get("inertia")
+    model = _model_off_selection(prep, fit)
+    if (model is None or not w or po is None or der.get("resampled") or J is None or int(w) < 7
+            or int(w) >= jd.a.size or not short_derivative_window(prep, jd)):
+        return None
+    w = int(w)
+    h = float(np.median(np.diff(jd.t)))
+    g = acceleration_filter_kernel(w, int(po), h)
+    L = g.size
+    thr = jd.counts["thresholds"]
+    guard = max(int(np.ceil(SIGN_GUARD_S / h)), L)
+    one_sign = one_sign_samples(jd.v, thr["v_min"], guard, jd.t)
+    idx = np.flatnonzero(one_sign & (np.abs(jd.a) > thr["a_max"]))
+    idx = idx[idx % L == 0]           # one kernel length apart: the smoothed noise is independent
+    if idx.size < MIN_EXCLUDED_SAMPLES // 2:
+        return None
+    every = np.arange(jd.t.size)
+    F = _friction_at(model, fit, jd, j, every)
+    if F is None:
+        return None
+    smooth = lambda x: np.convolve(x, g, mode="same")   # noqa: E731
+    other = jd.tau - (jd.rb - J * jd.a) - F               # torque minus everything but the inertia
+    r = smooth(other)[idx] - J * jd.a[idx]
+    cols = [np.ones(idx.size), jd.a[idx], smooth(jd.v)[idx], smooth(np.sign(jd.v))[idx]]
+    from drake_est.diagnose.nominal import joint_tau_step
+    Q = quantization_nuisance(jd.rb + F, joint_tau_step(prep, j))
+    if Q is not None:
+        cols += [smooth(Q[:, i])[idx] for i in range(Q.shape[1])]
+    Nu = np.column_stack(cols)
+    jerk_all = savgol_filter(jd.a, w, int(po), deriv=1, delta=h)
+    snap_all = savgol_filter(jd.a, w, int(po), deriv=2, delta=h)
+    X = np.column_stack([jerk_all[idx], snap_all[idx]])
+    P = lambda x: x - Nu @ np.linalg.lstsq(Nu, x, rcond=None)[0]   # noqa: E731
+    e, Xp = P(r), np.column_stack([P(X[:, 0]), P(X[:, 1])])
+    coef, *_ = np.linalg.lstsq(Xp, e, rcond=None)
+    fitted = Xp @ coef
+    ss, gain = float(e @ e), float(fitted @ fitted)
+    n = idx.size
+    dof = n - Nu.shape[1] - X.shape[1]
+    if ss <= 0 or dof < 10:
+        return None
+    Fst = (gain / X.shape[1]) / max((ss - gain) / dof, 1e-300)
+    p = float(scipy.stats.f.sf(Fst, X.shape[1], dof))
+    return (p, gain / ss, (float(coef[0]), float(coef[1])), ss / n, *bin_profile(fitted, e))
+
+
 def reversal_times(t, q, v, half_s=0.02):
     """Velocity reversals of one axis: (index of the first sample after each sign change of ``v``, the
     reversal instant t0 [s]).  t0 is the stationary point of a least-squares cubic fitted to the *measured
@@ -592,6 +673,9 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
             r = _time_shift(prep, fit, j)
             if r is not None:
                 tests.append((j, "time_shift_torque_vs_position", r))
+            r = matched_filter_test(prep, fit, j)
+            if r is not None:
+                tests.append((j, "jerk_snap_matched_filter", r))
         # at any sample rate: the torque impulse at velocity reversals (momentum balance, no filtered qdd)
         r = reversal_impulse(prep, fit, j)
         if r is not None:
@@ -615,6 +699,8 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
         if steps[j] > 0 and guarded and np.sqrt(share * v_e) < steps[j] * ADC_GUARD_STEPS:
             continue
         need = max(min_share, MIN_SHARE_EXCLUDED) if name.endswith("_excluded_samples") else min_share
+        if name == "jerk_snap_matched_filter":
+            need = max(min_share, MIN_SHARE_MATCHED)
         if p < alpha / n_tests and share >= need:
             d = {"joint": int(j), "variable": name, "p_value": p, "share_of_residual_variance": float(share),
                  "samples": "accelerating samples left out by (9.9)" if name.endswith("_excluded_samples")
@@ -627,6 +713,14 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
                              "re-smoothing error, viscous and Coulomb errors and sixth derivative regressed out)")
                 d["snap_coefficient"] = where
                 d["profile_snap"], d["profile_mean_residual"] = r[4], r[5]
+            elif name == "jerk_snap_matched_filter":
+                d["test"] = ("F-test of jerk and snap in the residual with the torque smoothed like the acceleration "
+                             "(no derivative-filter error; offset, inertia, viscous and Coulomb errors regressed out)")
+                d["samples"] = ("accelerating samples left out by (9.9), one velocity sign for "
+                                f"{SIGN_GUARD_S:g} s on both sides, one filter length apart")
+                d["profile_fitted_jerk_snap"], d["profile_mean_residual"] = r[4], r[5]
+                # a delay d leaves about -J d x jerk; an elastic gear below its anti-resonance -(J_load^2 / k) x snap
+                d["jerk_coefficient"], d["snap_coefficient"] = where
             elif name == "time_shift_torque_vs_position":
                 d["test"] = "F-test of the odd model-torque difference (torque = model at a shifted time)"
                 d["profile_torque_difference"], d["profile_mean_residual"] = r[4], r[5]
