@@ -151,14 +151,14 @@ def test_readme_testbench_counts_are_the_measured_ones():
     for f in ("diagnose_testbench_round4.json", "diagnose_testbench_round5.json", "diagnose_testbench_round6.json",
               "diagnose_testbench_round7.json", "diagnose_testbench_round8.json", "diagnose_testbench_round9_first.json",
               "diagnose_testbench_round11.json", "diagnose_testbench_round12.json", "diagnose_testbench_round13.json",
-              "diagnose_testbench.json"):
+              "diagnose_testbench_round14.json", "diagnose_testbench.json"):
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         for fam in ("testbench", "loop"):
             assert mod.ambiguity_line(f"{fam} family of `{f}`", h["per_family"][fam]) in readme, (f, fam)
     # the sixth to eighth rounds' tables of the "unexplained" verdict: every family / block, the fifth to eighth
     # rounds' JSONs (the fresh blocks from 700 on: the runs each was given)
     # (the closed-loop blocks' rows: test_every_closed_loop_block_row_in_the_docs_is_its_json)
-    for r in ("_round5", "_round6", "_round7", "_round8", "_round9_first", "_round11", "_round12", "_round13", ""):
+    for r in ("_round5", "_round6", "_round7", "_round8", "_round9_first", "_round11", "_round12", "_round13", "_round14", ""):
         f = f"diagnose_testbench{r}.json"
         h = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         for fam in ("testbench", "loop", "synth/generic", "synth/irb140"):
@@ -168,7 +168,8 @@ def test_readme_testbench_counts_are_the_measured_ones():
     for f in ("diagnose_testbench_round3.json", "diagnose_testbench_round4.json", "diagnose_testbench_round5.json",
               "diagnose_testbench_round6.json", "diagnose_testbench_round7.json", "diagnose_testbench_round8.json",
               "diagnose_testbench_round9_first.json", "diagnose_testbench_round11.json",
-              "diagnose_testbench_round12.json", "diagnose_testbench_round13.json"):
+              "diagnose_testbench_round12.json", "diagnose_testbench_round13.json",
+              "diagnose_testbench_round14.json"):
         r3 = mod.summarize(json.loads((root / "benchmarks" / "results" / f).read_text())["rows"])
         t3 = r3["per_family"]["testbench"]
         assert (f"(testbench family of `{f}`) | {t3['correct']} | {t3['wrong_names']} | "
