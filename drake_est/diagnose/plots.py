@@ -6,6 +6,20 @@ import numpy as np
 
 
 
+
+#: the profile panels of unexplained.png, in the order they are looked for: (profile key, x label of the entry,
+#: y label); each plots the entry's profile against "profile_mean_residual"
+PROFILE_PANELS = (
+    ("profile_snap", lambda u: "snap d^4q/dt^4 [rad/s^4] (accelerating samples left out by (9.9))", "mean residual"),
+    ("profile_fitted_jerk_snap", lambda u: ("fitted jerk and snap part of the residual, torque smoothed like qdd "
+                                            "(accelerating samples left out by (9.9))"),
+     "mean residual (nuisance columns out)"),
+    ("profile_jerk", lambda u: "jerk d^3q/dt^3 [rad/s^3] (accelerating samples left out by (9.9))",
+     "mean residual (nuisance columns out)"),
+    ("profile_torque_difference", lambda u: (f"(M(t - d) - M(t + d)) / 2, model torque, d = {u['best_shift_s']:.3g} s "
+                                             "(nuisance columns out)"), "mean residual (nuisance columns out)"),
+)
+
 def _residual_panel(ax, x, r0, r1, extended: bool, j, xlabel, what):
     """Held-out residual of joint ``j`` vs ``x``: nominal model (grey) and, if any, the extended model."""
     k = _thin(x.size)
@@ -72,28 +86,12 @@ def write_plots(rep, out) -> list:
                 ax.axvline(0.0, color="0.5", lw=0.8)
                 ax.set_xlabel("time from the velocity reversal [s]")
                 ax.set_ylabel("mean residual x new direction")
-            elif "profile_snap" in u:     # the snap test of the left-out samples: mean residual per snap bin
-                ax.plot(u["profile_snap"], u["profile_mean_residual"], ".-")
+            elif any(k in u for k, _, _ in PROFILE_PANELS):    # left-out-sample tests: mean residual per bin
+                key, xlabel, ylabel = next(p for p in PROFILE_PANELS if p[0] in u)
+                ax.plot(u[key], u["profile_mean_residual"], ".-")
                 ax.axhline(0.0, color="0.5", lw=0.8)
-                ax.set_xlabel("snap d^4q/dt^4 [rad/s^4] (accelerating samples left out by (9.9))")
-                ax.set_ylabel("mean residual")
-            elif "profile_fitted_jerk_snap" in u:     # the matched-filter test: mean residual per bin of its fit
-                ax.plot(u["profile_fitted_jerk_snap"], u["profile_mean_residual"], ".-")
-                ax.axhline(0.0, color="0.5", lw=0.8)
-                ax.set_xlabel("fitted jerk and snap part of the residual, torque smoothed like qdd "
-                              "(accelerating samples left out by (9.9))")
-                ax.set_ylabel("mean residual (nuisance columns out)")
-            elif "profile_jerk" in u:     # the jerk test of the left-out samples: mean residual per jerk bin
-                ax.plot(u["profile_jerk"], u["profile_mean_residual"], ".-")
-                ax.axhline(0.0, color="0.5", lw=0.8)
-                ax.set_xlabel("jerk d^3q/dt^3 [rad/s^3] (accelerating samples left out by (9.9))")
-                ax.set_ylabel("mean residual (nuisance columns out)")
-            elif "profile_torque_difference" in u:     # the time-shift test: mean residual per bin of the odd difference
-                ax.plot(u["profile_torque_difference"], u["profile_mean_residual"], ".-")
-                ax.axhline(0.0, color="0.5", lw=0.8)
-                ax.set_xlabel(f"(M(t - d) - M(t + d)) / 2, model torque, d = {u['best_shift_s']:.3g} s "
-                              "(nuisance columns out)")
-                ax.set_ylabel("mean residual (nuisance columns out)")
+                ax.set_xlabel(xlabel(u))
+                ax.set_ylabel(ylabel)
             else:
                 ax.plot(xs[u["variable"]](jd, rows), r1, ".", ms=1.5, alpha=0.4)
                 ax.set_xlabel(u["variable"])
