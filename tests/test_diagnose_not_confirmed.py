@@ -48,18 +48,38 @@ def test_the_threshold_decides(threshold):
     assert (got is None) == (threshold < 0.05)
 
 
-def test_a_small_time_periodic_finding_beside_a_ripple_is_set_aside():
-    """Closed-loop spec 948 of the benchmark (a motor-position ripple only, student-t noise): a 0.47 Hz
-    time-periodic disturbance lowered the held-out RMSE by 3 % after the ripple while the residual stayed
-    correlated in time.  It is set aside as not confirmed, the ripple stays, and report.json and report.md say why."""
-    # loop_cases(949)[948] of benchmarks/bench_diagnose_testbench.py
+def _spec_948():
+    # loop_cases(949)[948] of benchmarks/bench_diagnose_testbench.py: a motor-position ripple only, student-t noise
     log, _ = generate({"motor_position_ripple": 1.0}, seed=3948, duration=120.0, sample_rate=1000.0,
                       noise="student_t", noise_std=0.13582799905184845, check_visible=False)
-    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    return log
+
+
+def test_a_small_time_periodic_candidate_beside_a_ripple_is_never_named():
+    """Closed-loop spec 948 (a motor-position ripple only): a 0.47 Hz time-periodic candidate lowers the held-out
+    RMSE by 2-3 % after the ripple while the residual stays correlated in time.  Its paired held-out block test sits
+    at the level (p = 0.045 before the inertia backfit, 0.066 after, on an AVX2 machine; the CI machines' CPUs
+    differ in the last digits of the numerics, and an earlier CI machine, where this test required the set-aside
+    below, gave p < 0.05 after the backfit too).  Either way it is not named: rejected by the block test, or accepted and then set aside as not
+    confirmed (the next test); the ripple stays and the structure is reported as unexplained."""
+    d = diagnose(_spec_948(), robot="generic", seed=0, simulate=False).to_dict()
+    assert [f["effect"] for f in d["findings"]] == ["motor_position_ripple"]
+    assert d["unexplained"] and {u["joint"] for u in d["unexplained"]} == {1}
+    for r in d["set_aside"]:
+        assert r["effect"] == "time_periodic_disturbance" and r.get("not_confirmed"), r
+
+
+def test_a_small_time_periodic_finding_beside_a_ripple_is_set_aside(monkeypatch):
+    """Spec 948 with the paired block test's level at 0.10 instead of core.PAIRED_ALPHA (0.05), so that the 0.47 Hz
+    candidate passes it on any machine (see above): accepted after the ripple with a 2.6 % gain while the residual
+    stays correlated in time, it is set aside as not confirmed, the ripple stays, and report.json and report.md
+    say why."""
+    monkeypatch.setattr(core, "PAIRED_ALPHA", 0.10)
+    d = diagnose(_spec_948(), robot="generic", seed=0, simulate=False).to_dict()
     assert [f["effect"] for f in d["findings"]] == ["motor_position_ripple"]
     aside = [r for r in d["set_aside"] if r.get("not_confirmed")]
     assert [r["effect"] for r in aside] == ["time_periodic_disturbance"]
-    assert aside[0]["heldout_rmse_reduction"] < core.MIN_GAIN_NOT_WHITE
+    assert 0 < aside[0]["heldout_rmse_reduction"] < core.MIN_GAIN_NOT_WHITE
     assert "not confirmed" in aside[0]["reason"] and d["unexplained"]
     from drake_est.diagnose.report import markdown
     md = markdown(d)
@@ -68,7 +88,6 @@ def test_a_small_time_periodic_finding_beside_a_ripple_is_set_aside():
     assert "not confirmed while the final residual still holds structure" in md
     assert ("Each finding is checked against the others" in md) == any(not r.get("not_confirmed")
                                                                        for r in d["set_aside"])
-
 
 
 def _rival(name, reduction, significant=True):

@@ -667,9 +667,12 @@ def time_periodic_refit(jd, r_p, ext):
     plus its own part) once later findings are in the model: when it was accepted, a larger unmodeled effect (a
     position friction, say) dominated the residual, which biased its frequency and hid its harmonics, and a
     harmonic left out is later taken for another effect.  The fundamental f is refined by a bounded scalar
-    search over f +- 1 / (4 T) (T: training span; the harmonic orders kept), then each harmonic 2f, 3f is tested
-    as in :func:`time_periodic` (those at the motion's own lines, :func:`motion_lines_hz`, are not tried: there a
-    state-dependent misfit repeats with the motion).  Returns the new Extension, or None when nothing moved."""
+    search over f +- 1 / (4 T) (T: training span; the harmonic orders kept), then the harmonics 2f, 3f are chosen
+    again from none, as in :func:`time_periodic` (those at the motion's own lines, :func:`motion_lines_hz`, are not
+    tried: there a state-dependent misfit repeats with the motion): one taken on the dominated residual, where its
+    test sat at the threshold, goes when the partial residual does not hold it (loop spec 471: 3f at p = 9.8e-7
+    beside a position friction, none once the friction is in).  Returns the new Extension, or None when nothing
+    moved."""
     import scipy.optimize
     tr = jd.train
     t = jd.t[jd.rows]
@@ -693,8 +696,9 @@ def time_periodic_refit(jd, r_p, ext):
     f = float(res.x) if res.success and rss(float(res.x)) < rss(f0) else f0
     T_log = float(np.ptp(jd.t))
     skip = [(fl - 2.0 / max(T_log, 1e-12), fl + 2.0 / max(T_log, 1e-12)) for fl in motion_lines_hz(jd)]
-    freqs = _harmonics(tt, rt, f, [o * f for o in orders], h, skip)
-    if len(freqs) == len(fr) and abs(f - f0) <= 1e-3 / T:
+    freqs = _harmonics(tt, rt, f, [f], h, skip)
+    same_orders = sorted(round(x / f) for x in freqs) == sorted(round(o) for o in orders)
+    if same_orders and abs(f - f0) <= 1e-3 / T:
         return None
     C, names = _tp_columns(t, freqs), _tp_names(len(freqs))
     spec = {**ext.spec, "frequencies_hz": freqs}
