@@ -22,6 +22,10 @@ planted), ``missed`` (a planted effect not named).
 Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_diagnose_testbench.py [--family testbench,loop,synth]
            [--n 150] [--n-loop 100] [--n-synth 8] [--json out.json]
        python benchmarks/bench_diagnose_testbench.py --from-json out.json   (counts, matrices, README table again)
+       python benchmarks/bench_diagnose_testbench.py --rerun-kept time_periodic_disturbance [--lane 0/2]
+           [--sample-rate 10] --json r.json
+           (every kept row whose planted effects or findings name the effect, diagnosed again with this code and
+           compared with the kept row; --from-json r0.json,r1.json merges the lanes' differences)
 """
 from __future__ import annotations
 
@@ -328,6 +332,85 @@ def _run_family(family, specs, rows, start=0, refused=None):
                   f"{spec.get('noise', 'gaussian'):9s} {dt:5.1f}s", flush=True)
 
 
+#: what a row of a kept JSON is compared on when a log is diagnosed again (--rerun-kept)
+ROW_OUTCOME = ("got", "correct", "wrong", "missed", "oov_unexplained", "unexplained")
+
+
+def kept_jsons(results_dir=None) -> list:
+    """The kept benchmark JSONs of this script in ``benchmarks/results`` (the plain names: not the earlier
+    rounds' ``*_roundN*.json`` nor ``_before``/``_first``/``_second``/``_third`` copies)."""
+    import re
+    from pathlib import Path
+    d = Path(results_dir) if results_dir else Path(__file__).resolve().parent / "results"
+    return sorted(f for f in d.glob("diagnose_testbench*.json")
+                  if not re.search(r"_round|_before|_first|_second|_third", f.name))
+
+
+def kept_rows_naming(effect: str, results_dir=None, sample_rate: float | None = None) -> dict:
+    """{(family, robot, k): (JSON name, row)} of the kept rows whose planted effects or findings name ``effect``
+    (``"any"``: every row), at ``sample_rate`` [Hz] only when given."""
+    out = {}
+    for f in kept_jsons(results_dir):
+        for r in json.load(open(f)).get("rows", []):
+            if sample_rate is not None and r["sample_rate"] != sample_rate:
+                continue
+            if effect == "any" or effect in r["truth"] or effect in r["got"]:
+                out[(r["family"], r["robot"], r["k"])] = (f.name, r)
+    return out
+
+
+def row_differences(kept: dict, rows) -> list:
+    """The rows of a run again whose outcome (:data:`ROW_OUTCOME`; ``unexplained`` as a set) differs from the
+    kept row of the same (family, robot, k): [{json, family, robot, k, field: [kept, new]...}]."""
+    out = []
+    for r in rows:
+        key = (r["family"], r["robot"], r["k"])
+        if key not in kept:
+            continue
+        name, old = kept[key]
+        d = {}
+        for fld in ROW_OUTCOME:
+            a, b = old.get(fld), r.get(fld)
+            if fld == "unexplained":
+                a, b = sorted(set(a or [])), sorted(set(b or []))
+            if a != b:
+                d[fld] = [a, b]
+        if d:
+            out.append({"json": name, "family": r["family"], "robot": r["robot"], "k": r["k"], **d})
+    return out
+
+
+def _rerun_kept(effect: str, lane: str | None, sample_rate: float | None = None):
+    """Diagnose again the kept logs whose rows name ``effect`` (``"any"``: all), at ``sample_rate`` only when given
+    (lane ``i/n``: every n-th by cost, from i)."""
+    kept = kept_rows_naming(effect, sample_rate=sample_rate)
+    if not kept:
+        raise SystemExit(f"--rerun-kept: no kept row names '{effect}'"
+                         + (f" at {sample_rate:g} Hz" if sample_rate is not None else ""))
+    i, n = 0, 1
+    if lane:
+        try:
+            i, n = (int(x) for x in lane.split("/"))
+            assert 0 <= i < n
+        except (ValueError, AssertionError):
+            raise SystemExit(f"--lane: expected I/N with 0 <= I < N, got '{lane}'") from None
+    kmax = {fam: max(k for f, _, k in kept if f == fam) + 1 for fam, _, _ in kept}
+    specs = {"testbench": cases(kmax.get("testbench", 0)), "loop": loop_cases(kmax.get("loop", 0)),
+             "synth": synth_cases(kmax.get("synth", 0))}
+    jobs = sorted({(fam, k) for fam, _, k in kept}, key=lambda j: (-specs[j[0]][j[1]]["sample_rate"]
+                                                                   * specs[j[0]][j[1]]["duration"], j))
+    rows, refused = [], []
+    for fam, k in jobs[i::n]:
+        _run_family(fam, [specs[fam][k]], rows, k, refused)
+    rows = [r for r in rows if (r["family"], r["robot"], r["k"]) in kept]
+    diffs = row_differences(kept, rows)
+    print(f"{len(rows)} kept rows naming {effect} diagnosed again (lane {i}/{n}); {len(diffs)} differ from the kept row")
+    for d in diffs:
+        print("  ", d)
+    return {"effect": effect, "sample_rate": sample_rate, "lane": f"{i}/{n}", "logs": len(rows), "rows": rows,
+            "refused": refused, "differences": diffs}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--family", default="testbench,loop,synth", help="comma-separated: testbench, loop, synth")
@@ -341,9 +424,33 @@ def main(argv=None):
     ap.add_argument("--from-json", default=None,
                     help="re-summarize the rows of earlier --json outputs (comma-separated: e.g. one run per family, "
                          "run in parallel, merged into one summary)")
+    ap.add_argument("--rerun-kept", default=None, metavar="EFFECT",
+                    help="diagnose again every kept row (benchmarks/results) whose planted effects or findings name "
+                         "EFFECT and list the rows whose outcome differs")
+    ap.add_argument("--lane", default=None, metavar="I/N", help="with --rerun-kept: this process's share of the logs")
+    ap.add_argument("--sample-rate", type=float, default=None,
+                    help="with --rerun-kept: only the kept rows at this sample rate [Hz] (EFFECT 'any': all of them)")
     a = ap.parse_args(argv)
+    if a.rerun_kept:
+        out = _rerun_kept(a.rerun_kept, a.lane, a.sample_rate)
+        if a.json:
+            from drake_est.jsonutil import dump_json
+            dump_json(out, a.json)
+        return out
     if a.from_json:
-        rows = [r for f in a.from_json.split(",") if f.strip() for r in json.load(open(f.strip()))["rows"]]
+        parts = [json.load(open(f.strip())) for f in a.from_json.split(",") if f.strip()]
+        rows = [r for d in parts for r in d["rows"]]
+        if parts and all("differences" in d for d in parts):
+            out = {"effect": parts[0]["effect"], "sample_rate": parts[0].get("sample_rate"), "logs": len(rows),
+                   "rows": rows,
+                   "refused": [r for d in parts for r in d["refused"]],
+                   "differences": [x for d in parts for x in d["differences"]]}
+            print(f"{out['logs']} kept rows naming {out['effect']} diagnosed again; "
+                  f"{len(out['differences'])} differ from the kept row")
+            if a.json:
+                from drake_est.jsonutil import dump_json
+                dump_json(out, a.json)
+            return out
         summary = summarize(rows)
         _print(summary)
         if a.json:

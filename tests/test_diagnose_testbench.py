@@ -267,6 +267,54 @@ def test_summarize_counts_per_family():
     assert table[-1].startswith("| all | 4 | 3 | 1 | 1 |")
 
 
+def test_rerun_kept_selects_rows_and_lists_what_differs(tmp_path):
+    """--rerun-kept: kept_jsons skips earlier rounds' copies, kept_rows_naming selects the rows whose truth or
+    finding names the effect, and row_differences lists a changed outcome (unexplained compared as a set), not an
+    unchanged row nor a row that was not kept."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    base = {"family": "loop", "robot": "generic", "wrong": [], "missed": [], "oov_unexplained": True,
+            "correct": True, "unexplained": ["time", "jerk_excluded_samples"]}
+    rows = [dict(base, k=3, truth="time_periodic_disturbance", got="time_periodic_disturbance"),
+            dict(base, k=4, truth="stribeck", got="ambiguous(time_periodic_disturbance|motor_position_ripple)"),
+            dict(base, k=5, truth="stribeck", got="stribeck")]
+    (tmp_path / "diagnose_testbench_loop_heldout9.json").write_text(json.dumps({"rows": rows}))
+    (tmp_path / "diagnose_testbench_loop_heldout9_round15.json").write_text(json.dumps({"rows": rows}))
+    assert [f.name for f in mod.kept_jsons(tmp_path)] == ["diagnose_testbench_loop_heldout9.json"]
+    kept = mod.kept_rows_naming("time_periodic_disturbance", tmp_path)
+    assert sorted(kept) == [("loop", "generic", 3), ("loop", "generic", 4)]
+    assert len(mod.kept_rows_naming("any", tmp_path)) == 3
+    assert mod.kept_rows_naming("any", tmp_path, sample_rate=10.0) == {}
+    again = [dict(rows[0], unexplained=["jerk_excluded_samples", "time"]),
+             dict(rows[1], got="stribeck", correct=True, unexplained=["time"]),
+             dict(base, k=7, truth="none", got="stribeck", correct=False)]
+    diffs = mod.row_differences(kept, again)
+    assert diffs == [{"json": "diagnose_testbench_loop_heldout9.json", "family": "loop", "robot": "generic", "k": 4,
+                      "got": ["ambiguous(time_periodic_disturbance|motor_position_ripple)", "stribeck"],
+                      "unexplained": [["jerk_excluded_samples", "time"], ["time"]]}]
+
+
+def test_sixteenth_round_rerun_numbers_are_its_json():
+    """The docs' count of kept rows diagnosed again by --rerun-kept and of those that differ come from its JSON, and
+    every differing spec is named there."""
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    d = json.loads((root / "benchmarks" / "results" / "diagnose_rerun_kept_time_periodic_round16.json").read_text())
+    doc = " ".join((root / "docs" / "readme" / "diagnose_testbench.md").read_text().split())
+    assert d["logs"] == len(d["rows"]) and d["effect"] == "time_periodic_disturbance"
+    assert f"**{d['logs']} kept rows, {len(d['differences'])} differing**" in doc
+    for x in d["differences"]:
+        assert f"spec {x['k']}" in doc and f"`{x['json']}`" in doc
+
+
 def test_lowrate_unexplained_table_is_the_measured_one():
     """The docs' table of the "unexplained" verdict by sample rate holds the rows that
     benchmarks/bench_unexplained_lowrate.py --markdown prints for the kept JSONs."""

@@ -330,6 +330,15 @@ def _model_off_selection(prep, fit):
     return None if model is None or model.shared_exts() else model
 
 
+def accelerating_one_sign(jd, guard_samples: int) -> np.ndarray:
+    """Indices of the samples of joint data ``jd`` that the data selection (9.9) left out as accelerating
+    (|qdd| above its ``a_max``) whose velocity keeps one sign (|qd| above its ``v_min``) for ``guard_samples`` on
+    both sides: where the jerk tests of :func:`_excluded_moving` and :func:`matched_filter_test` look."""
+    thr = jd.counts["thresholds"]
+    one_sign = one_sign_samples(jd.v, thr["v_min"], int(guard_samples), jd.t)
+    return np.flatnonzero(one_sign & (np.abs(jd.a) > thr["a_max"]))
+
+
 def _excluded_moving(prep, fit, j, n_max=20000):
     """ANOVA over jerk of the final model's residual on the *moving but accelerating* samples that
     the data selection (9.9) left out (a delay between torque and position, backlash or an inertia error
@@ -346,10 +355,8 @@ def _excluded_moving(prep, fit, j, n_max=20000):
     model = _model_off_selection(prep, fit)
     if model is None:
         return None
-    thr = jd.counts["thresholds"]
     h = float(np.median(np.diff(jd.t)))
-    one_sign = one_sign_samples(jd.v, thr["v_min"], int(np.ceil(SIGN_GUARD_S / h)), jd.t)
-    idx = np.flatnonzero(one_sign & (np.abs(jd.a) > thr["a_max"]))
+    idx = accelerating_one_sign(jd, int(np.ceil(SIGN_GUARD_S / h)))
     if idx.size < MIN_EXCLUDED_SAMPLES:
         return None
     idx = idx[:: max(1, idx.size // n_max)]
@@ -459,10 +466,7 @@ def matched_filter_test(prep, fit, j):
     h = float(np.median(np.diff(jd.t)))
     g = acceleration_filter_kernel(w, int(po), h)
     L = g.size
-    thr = jd.counts["thresholds"]
-    guard = max(int(np.ceil(SIGN_GUARD_S / h)), L)
-    one_sign = one_sign_samples(jd.v, thr["v_min"], guard, jd.t)
-    idx = np.flatnonzero(one_sign & (np.abs(jd.a) > thr["a_max"]))
+    idx = accelerating_one_sign(jd, max(int(np.ceil(SIGN_GUARD_S / h)), L))
     idx = idx[idx % L == 0]           # one kernel length apart: the smoothed noise is independent
     if idx.size < MIN_EXCLUDED_SAMPLES // 2:
         return None
