@@ -404,7 +404,8 @@ def _rerun_kept(effect: str, lane: str | None, sample_rate: float | None = None)
         _run_family(fam, [specs[fam][k]], rows, k, refused)
     rows = [r for r in rows if (r["family"], r["robot"], r["k"]) in kept]
     diffs = row_differences(kept, rows)
-    print(f"{len(rows)} kept rows naming {effect} diagnosed again (lane {i}/{n}); {len(diffs)} differ from the kept row")
+    print(f"{len(rows)} kept rows naming {effect} diagnosed again (lane {i}/{n}); "
+          f"{len(diffs)} differ from the kept row")
     for d in diffs:
         print("  ", d)
     return {"effect": effect, "sample_rate": sample_rate, "lane": f"{i}/{n}", "logs": len(rows), "rows": rows,

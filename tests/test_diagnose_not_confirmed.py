@@ -60,8 +60,9 @@ def test_a_small_time_periodic_candidate_beside_a_ripple_is_never_named():
     RMSE by 2-3 % after the ripple while the residual stays correlated in time.  Its paired held-out block test sits
     at the level (p = 0.045 before the inertia backfit, 0.066 after, on an AVX2 machine; the CI machines' CPUs
     differ in the last digits of the numerics, and an earlier CI machine, where this test required the set-aside
-    below, gave p < 0.05 after the backfit too).  Either way it is not named: rejected by the block test, or accepted and then set aside as not
-    confirmed (the next test); the ripple stays and the structure is reported as unexplained."""
+    below, gave p < 0.05 after the backfit too).  Either way it is not named: rejected by the block test, or
+    accepted and then set aside as not confirmed (the next test); the ripple stays and the structure is reported as
+    unexplained."""
     d = diagnose(_spec_948(), robot="generic", seed=0, simulate=False).to_dict()
     assert [f["effect"] for f in d["findings"]] == ["motor_position_ripple"]
     assert d["unexplained"] and {u["joint"] for u in d["unexplained"]} == {1}

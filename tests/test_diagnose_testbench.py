@@ -279,8 +279,8 @@ def test_rerun_kept_selects_rows_and_lists_what_differs(tmp_path):
     spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
-    base = {"family": "loop", "robot": "generic", "wrong": [], "missed": [], "oov_unexplained": True,
-            "correct": True, "unexplained": ["time", "jerk_excluded_samples"]}
+    base = {"family": "loop", "robot": "generic", "sample_rate": 100.0, "wrong": [], "missed": [],
+            "oov_unexplained": True, "correct": True, "unexplained": ["time", "jerk_excluded_samples"]}
     rows = [dict(base, k=3, truth="time_periodic_disturbance", got="time_periodic_disturbance"),
             dict(base, k=4, truth="stribeck", got="ambiguous(time_periodic_disturbance|motor_position_ripple)"),
             dict(base, k=5, truth="stribeck", got="stribeck")]
