@@ -307,12 +307,20 @@ def test_sixteenth_round_rerun_numbers_are_its_json():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    d = json.loads((root / "benchmarks" / "results" / "diagnose_rerun_kept_time_periodic_round16.json").read_text())
     doc = " ".join((root / "docs" / "readme" / "diagnose_testbench.md").read_text().split())
+    d = json.loads((root / "benchmarks" / "results" / "diagnose_rerun_kept_time_periodic_round16.json").read_text())
     assert d["logs"] == len(d["rows"]) and d["effect"] == "time_periodic_disturbance"
     assert f"**{d['logs']} kept rows, {len(d['differences'])} differing**" in doc
     for x in d["differences"]:
         assert f"spec {x['k']}" in doc and f"`{x['json']}`" in doc
+    # the 10 Hz rows: the differences are labels and entries, none in what is correct, wrong or missed
+    d = json.loads((root / "benchmarks" / "results" / "diagnose_rerun_kept_10hz_round16.json").read_text())
+    assert d["logs"] == len(d["rows"]) and d["sample_rate"] == 10.0
+    assert {r["sample_rate"] for r in d["rows"]} == {10.0}
+    assert f"**{d['logs']} kept rows, {len(d['differences'])} differing**, none in what is correct" in doc
+    for x in d["differences"]:
+        assert not set(x) & {"correct", "wrong", "missed", "oov_unexplained"}, x
+        assert str(x["k"]) in doc
 
 
 def test_lowrate_unexplained_table_is_the_measured_one():
