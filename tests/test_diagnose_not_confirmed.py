@@ -48,22 +48,23 @@ def test_the_threshold_decides(threshold):
     assert (got is None) == (threshold < 0.05)
 
 
-def _spec_948():
+def _spec_948(ulps=0):
     # loop_cases(949)[948] of benchmarks/bench_diagnose_testbench.py: a motor-position ripple only, student-t noise
     log, _ = generate({"motor_position_ripple": 1.0}, seed=3948, duration=120.0, sample_rate=1000.0,
-                      noise="student_t", noise_std=0.13582799905184845, check_visible=False)
+                      noise="student_t", noise_std=0.13582799905184845, check_visible=False, reference_ulps=ulps)
     return log
 
 
-def test_a_small_time_periodic_candidate_beside_a_ripple_is_never_named():
+@pytest.mark.parametrize("ulps", [0, 3])
+def test_a_small_time_periodic_candidate_beside_a_ripple_is_never_named(ulps):
     """Closed-loop spec 948 (a motor-position ripple only): a 0.47 Hz time-periodic candidate lowers the held-out
     RMSE by 2-3 % after the ripple while the residual stays correlated in time.  Its paired held-out block test sits
     at the level (p = 0.045 before the inertia backfit, 0.066 after, on an AVX2 machine; the CI machines' CPUs
     differ in the last digits of the numerics, and an earlier CI machine, where this test required the set-aside
     below, gave p < 0.05 after the backfit too).  Either way it is not named: rejected by the block test, or
     accepted and then set aside as not confirmed (the next test); the ripple stays and the structure is reported as
-    unexplained."""
-    d = diagnose(_spec_948(), robot="generic", seed=0, simulate=False).to_dict()
+    unexplained.  Also with the reference moved by 3 ulps (testbench_loop.generate's reference_ulps)."""
+    d = diagnose(_spec_948(ulps), robot="generic", seed=0, simulate=False).to_dict()
     assert [f["effect"] for f in d["findings"]] == ["motor_position_ripple"]
     assert d["unexplained"] and {u["joint"] for u in d["unexplained"]} == {1}
     for r in d["set_aside"]:

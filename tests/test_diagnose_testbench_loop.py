@@ -187,10 +187,24 @@ def test_diagnosis_spot_checks(k):
     assert j["correct"], (spec, [f["effect"] for f in d["findings"]], d["unexplained"])
 
 
+def test_reference_ulps_changes_only_the_last_digits():
+    """reference_ulps = k scales the position reference by (1 + k 2^-52): 0 is the default log; 1 differs from it
+    in the last digits of most torque samples and, where the encoder rounds the other way, by one encoder step of
+    the position (and the servo's answer to it): what another CPU's math library changes."""
+    kw = dict(effects={"motor_position_ripple": 1.0}, seed=8, duration=20, sample_rate=100, check_visible=False)
+    a, ta = generate(**kw)
+    b, _ = generate(**kw, reference_ulps=0)
+    c, _ = generate(**kw, reference_ulps=1)
+    assert np.array_equal(a.tau, b.tau) and np.array_equal(a.q, b.q)
+    assert not np.array_equal(a.tau, c.tau)
+    assert np.median(np.abs(a.tau - c.tau)) < 1e-9 * np.max(np.abs(a.tau))
+    assert np.max(np.abs(a.q - c.q)) <= 1.001 * ta["encoder_step_rad"]
+
+
 def test_bad_arguments_are_one_line_data_errors():
     from drake_est.errors import DataError
     for kw in ({"effects": {"gearbox": 1.0}}, {"effects": {"stribeck": -1.0}}, {"noise": "pink"},
-               {"duration": 0.0}):
+               {"duration": 0.0}, {"reference_ulps": -1}, {"reference_ulps": 0.5}):
         with pytest.raises(DataError) as e:
             generate(**{"effects": {}, **kw}, seed=0, **({} if "duration" in kw else {"duration": 5.0}))
         assert "\n" not in str(e.value)

@@ -407,7 +407,7 @@ def _nominal_residual(t, y, u):
 
 def generate(effects=None, seed: int = 0, duration: float = 120.0, sample_rate: float = 100.0,
              noise: str = "gaussian", noise_std: float = 0.1, prismatic: bool = False, check_visible: bool = True,
-             speeds=None):
+             speeds=None, reference_ulps: int = 0):
     """A closed-loop axis log with planted ``effects`` ({name: relative size}, 1 = typical, 1/3 = small;
     optional keys ``_vs`` [rad/s], ``_f_hz`` [Hz], ``_f_per_rad`` [cycles/rad]); returns ``(Log, truth)``.
 
@@ -415,7 +415,11 @@ def generate(effects=None, seed: int = 0, duration: float = 120.0, sample_rate: 
     {name: reason} for those that are not; ``truth["signals"]``: noise-free arrays (true position, velocity,
     thermal state, torque command before the torque noise) at the logged samples.  ``speeds`` (of
     :func:`drake_est.diagnose.testbench.generate`) is accepted for the same call and has no meaning here: the
-    speeds come from the reference family.  Unknown effects, noise kinds or sizes raise a one-line DataError."""
+    speeds come from the reference family.  ``reference_ulps`` = k scales the position reference by
+    (1 + k 2^-52): the log then differs from k = 0 in the last digits, as on a CPU whose math library rounds
+    differently (the closed loop and the quantized encoder carry such digits into every sample); a test that
+    follows one log near a threshold runs over several k so that its claim is not one CPU's last digit.  Unknown
+    effects, noise kinds or sizes raise a one-line DataError."""
     from drake_est.data import from_arrays
     from drake_est.errors import DataError
 
@@ -431,6 +435,9 @@ def generate(effects=None, seed: int = 0, duration: float = 120.0, sample_rate: 
         raise DataError(f"noise: unknown kind '{noise}' (choose from gaussian, student_t, quantized)")
     if not (np.isfinite(duration) and duration > 0 and np.isfinite(sample_rate) and sample_rate > 0):
         raise DataError(f"duration and sample_rate must be finite and > 0, got {duration}, {sample_rate}")
+    if isinstance(reference_ulps, bool) or not isinstance(reference_ulps, (int, np.integer)) \
+            or not 0 <= reference_ulps <= 1024:
+        raise DataError(f"reference_ulps must be an integer in 0..1024, got {reference_ulps!r}")
     rng = np.random.default_rng(seed)
     p0, info, (traj, lo, hi, vmax), draws = _draw(rng, effects, duration, sample_rate)
     n_log = int(round(duration * sample_rate))
@@ -441,6 +448,8 @@ def generate(effects=None, seed: int = 0, duration: float = 120.0, sample_rate: 
     ref = fam(rng, duration + 2 * h, dt, lo, hi, vmax)
     n_sim = n_log * int(p0[P_NSUB])
     ref = tuple(np.ascontiguousarray(r[:n_sim]) for r in ref)
+    if reference_ulps:
+        ref = (ref[0] * (1.0 + int(reference_ulps) * 2.0 ** -52),) + ref[1:]
     p0[P_Q0] = ref[0][0]
     truth = {"noise": noise, "noise_std": noise_std, **info}
 
