@@ -106,14 +106,14 @@ def loop_cases(n: int):
     return out
 
 
-def loop_log(spec, effects=None):
+def loop_log(spec, effects=None, **kw):
     """(Log, truth) of a closed-loop spec: a dict of :func:`loop_cases` or its index k (``loop_cases(k + 1)[k]``),
-    with its own effects or ``effects`` instead."""
+    with its own effects or ``effects`` instead (``kw``: e.g. ``reference_ulps``, passed to the generator)."""
     from drake_est.diagnose.testbench_loop import generate
     if not isinstance(spec, dict):
         spec = loop_cases(int(spec) + 1)[int(spec)]
     return generate(spec["effects"] if effects is None else effects, seed=spec["seed"], duration=spec["duration"],
-                    sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
+                    sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"], **kw)
 
 
 def synth_cases(n: int):
@@ -284,7 +284,8 @@ def _row(k, family, robot, spec, log, d, dt, not_visible=None):
     r = {"k": k, "family": family, "robot": robot, "truth": truth_name, "got": _got(d), "seconds": dt,
          "samples": int(log.n_samples), "sample_rate": spec.get("sample_rate"), "duration": spec.get("duration"),
          "noise": spec.get("noise", "gaussian"), "noise_std": spec.get("noise_std"),
-         "unexplained": [u.get("variable") for u in d["unexplained"]], **j}
+         "unexplained": [u.get("variable") for u in d["unexplained"]],
+         "set_aside": [x.get("effect") for x in d.get("set_aside") or []], **j}
     if nv:
         r["not_visible"] = nv
     return r
@@ -347,14 +348,15 @@ def kept_jsons(results_dir=None) -> list:
 
 
 def kept_rows_naming(effect: str, results_dir=None, sample_rate: float | None = None) -> dict:
-    """{(family, robot, k): (JSON name, row)} of the kept rows whose planted effects or findings name ``effect``
-    (``"any"``: every row), at ``sample_rate`` [Hz] only when given."""
+    """{(family, robot, k): (JSON name, row)} of the kept rows whose planted effects, findings or set-aside
+    findings (rows since the seventeenth round) name ``effect`` (``"any"``: every row), at ``sample_rate`` [Hz] only
+    when given."""
     out = {}
     for f in kept_jsons(results_dir):
         for r in json.load(open(f)).get("rows", []):
             if sample_rate is not None and r["sample_rate"] != sample_rate:
                 continue
-            if effect == "any" or effect in r["truth"] or effect in r["got"]:
+            if effect == "any" or effect in r["truth"] or effect in r["got"] or effect in r.get("set_aside", []):
                 out[(r["family"], r["robot"], r["k"])] = (f.name, r)
     return out
 
@@ -403,12 +405,16 @@ def _rerun_kept(effect: str, lane: str | None, sample_rate: float | None = None)
     for fam, k in jobs[i::n]:
         _run_family(fam, [specs[fam][k]], rows, k, refused)
     rows = [r for r in rows if (r["family"], r["robot"], r["k"]) in kept]
-    diffs = row_differences(kept, rows)
-    print(f"{len(rows)} kept rows naming {effect} diagnosed again (lane {i}/{n}); "
+    return _rerun_summary(effect, sample_rate, f"{i}/{n}", rows, refused, row_differences(kept, rows))
+
+
+def _rerun_summary(effect, sample_rate, lane, rows, refused, diffs) -> dict:
+    """The JSON of a --rerun-kept run (one lane, or lanes merged with --from-json), printed as it is made."""
+    print(f"{len(rows)} kept rows naming {effect} diagnosed again (lane {lane}); "
           f"{len(diffs)} differ from the kept row")
     for d in diffs:
         print("  ", d)
-    return {"effect": effect, "sample_rate": sample_rate, "lane": f"{i}/{n}", "logs": len(rows), "rows": rows,
+    return {"effect": effect, "sample_rate": sample_rate, "lane": lane, "logs": len(rows), "rows": rows,
             "refused": refused, "differences": diffs}
 
 
@@ -442,12 +448,10 @@ def main(argv=None):
         parts = [json.load(open(f.strip())) for f in a.from_json.split(",") if f.strip()]
         rows = [r for d in parts for r in d["rows"]]
         if parts and all("differences" in d for d in parts):
-            out = {"effect": parts[0]["effect"], "sample_rate": parts[0].get("sample_rate"), "logs": len(rows),
-                   "rows": rows,
-                   "refused": [r for d in parts for r in d["refused"]],
-                   "differences": [x for d in parts for x in d["differences"]]}
-            print(f"{out['logs']} kept rows naming {out['effect']} diagnosed again; "
-                  f"{len(out['differences'])} differ from the kept row")
+            out = _rerun_summary(parts[0]["effect"], parts[0].get("sample_rate"),
+                                 "+".join(d.get("lane", "?") for d in parts), rows,
+                                 [r for d in parts for r in d["refused"]],
+                                 [x for d in parts for x in d["differences"]])
             if a.json:
                 from drake_est.jsonutil import dump_json
                 dump_json(out, a.json)

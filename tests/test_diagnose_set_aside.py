@@ -177,7 +177,8 @@ def test_rival_that_does_not_separate_on_held_out_blocks_makes_the_finding_ambig
     reported as ambiguous between the two, not replaced by the load (the third round's wrong name).  Since the
     fifth round (ks >= 0, a Stribeck grid beyond the data when the friction falls throughout) the Stribeck term fits
     well enough that the load no longer scores above the asymmetric level; the asymmetric level is named, and if a
-    rival is reported beside it, it is the load it was not separated from."""
+    rival is reported beside it, it is the load it was not separated from.  Checked at reference_ulps 0 and 3: at 3
+    the load is taken first and then set aside (the mechanism differs, the outcome does not)."""
     import sys
     from pathlib import Path
 
@@ -187,8 +188,12 @@ def test_rival_that_does_not_separate_on_held_out_blocks_makes_the_finding_ambig
     from drake_est.diagnose import diagnose
     from drake_est.diagnose.testbench_loop import generate
     s = loop_cases(144)[143]
-    log, _ = generate(s["effects"], seed=s["seed"], duration=s["duration"], sample_rate=s["sample_rate"],
-                      noise=s["noise"], noise_std=s["noise_std"])
+    for ulps in (0, 3):
+        _check_spec_143(generate(s["effects"], seed=s["seed"], duration=s["duration"], sample_rate=s["sample_rate"],
+                                 noise=s["noise"], noise_std=s["noise_std"], reference_ulps=ulps)[0], diagnose)
+
+
+def _check_spec_143(log, diagnose):
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert sorted(f["effect"] for f in d["findings"]) == ["asymmetric_coulomb", "stribeck"], d["findings"]
     f = next(f for f in d["findings"] if f["effect"] == "asymmetric_coulomb")
@@ -200,7 +205,11 @@ def test_rival_that_does_not_separate_on_held_out_blocks_makes_the_finding_ambig
                 or c.get("separation_below_min_gain", {}).get("position_dependent_load", 1.0) < core.MIN_GAIN)
     else:
         assert f["competition"]["runner_up"] == "position_dependent_load" and f["competition"]["margin"] > 0
-    assert d["set_aside"] == []
+    # where the load is taken first (the generated reference 3 ulps off, another CPU's last digits) it is set aside
+    # for the asymmetric level it did not separate from: the outcome is the same, the load is never named
+    for r in d["set_aside"]:
+        assert (r["effect"], r["joint"], r["better"]) == ("position_dependent_load", 1, "asymmetric_coulomb"), r
+        assert not r.get("not_separated") or r["paired_p_value"] > core.PAIRED_ALPHA
 
 
 class _Ext:

@@ -374,7 +374,9 @@ def test_a_load_that_direction_levels_or_a_speed_curve_explain_is_not_named_alon
     law, 10 Hz, quantized): under point-to-point moves each position is passed at one speed and in one direction,
     and a position load took the asymmetric level (2453) and the Lorentzian's misfit (2662), named as a load.  Given
     a free friction curve of each direction the load adds nothing, so it is reported ambiguous with a speed law; no
-    finding is named without a planted effect among its alternatives."""
+    finding is named without a planted effect among its alternatives.  2453 is run again with the generated
+    reference moved by 4 ulps (another CPU's last digits): there the load is taken and later set aside for the
+    asymmetric level (the mechanism differs, the outcome does not)."""
     import json
     import sys
     from pathlib import Path
@@ -382,16 +384,19 @@ def test_a_load_that_direction_levels_or_a_speed_curve_explain_is_not_named_alon
     from bench_diagnose_testbench import judge, loop_cases, loop_log
     from drake_est.diagnose import diagnose
 
-    for k in (2453, 2662):
+    for k, ulps in ((2453, 0), (2453, 4), (2662, 0)):
         spec = loop_cases(k + 1)[k]
-        log, truth = loop_log(spec)
+        log, truth = loop_log(spec, reference_ulps=ulps)
         d = json.loads(json.dumps(diagnose(log, robot="generic", seed=0, simulate=False).to_dict(), default=str))
         load = [f for f in d["findings"] if f["effect"] == "position_dependent_load"]
-        # on this log the load is found (with the reference moved by 2 ulps, testbench_loop.generate's
+        # on these logs the load is found (with the reference moved by 2 ulps, testbench_loop.generate's
         # reference_ulps, it is not, in 2662): where it is, it is reported ambiguous with a speed law
-        if k == 2453 or load:
-            assert load and load[0]["status"] == "ambiguous", d["findings"]
+        if load:
+            assert load[0]["status"] == "ambiguous", d["findings"]
             c = load[0]["competition"]
             assert c.get("confounded_with_speed") and c.get("position_vs_speed"), c
             assert "stribeck" in c["ambiguous_with"], c
-        assert judge(spec, d, truth["not_visible"])["wrong"] == [], (k, [f["effect"] for f in d["findings"]])
+        elif k == 2453:
+            aside = [r for r in d["set_aside"] if r["effect"] == "position_dependent_load"]
+            assert aside and aside[0]["better"] == "asymmetric_coulomb", (ulps, d["findings"], d["set_aside"])
+        assert judge(spec, d, truth["not_visible"])["wrong"] == [], (k, ulps, [f["effect"] for f in d["findings"]])

@@ -283,13 +283,15 @@ def test_rerun_kept_selects_rows_and_lists_what_differs(tmp_path):
             "oov_unexplained": True, "correct": True, "unexplained": ["time", "jerk_excluded_samples"]}
     rows = [dict(base, k=3, truth="time_periodic_disturbance", got="time_periodic_disturbance"),
             dict(base, k=4, truth="stribeck", got="ambiguous(time_periodic_disturbance|motor_position_ripple)"),
-            dict(base, k=5, truth="stribeck", got="stribeck")]
+            dict(base, k=5, truth="stribeck", got="stribeck"),
+            dict(base, k=6, truth="stribeck", got="stribeck", set_aside=["time_periodic_disturbance"])]
     (tmp_path / "diagnose_testbench_loop_heldout9.json").write_text(json.dumps({"rows": rows}))
     (tmp_path / "diagnose_testbench_loop_heldout9_round15.json").write_text(json.dumps({"rows": rows}))
     assert [f.name for f in mod.kept_jsons(tmp_path)] == ["diagnose_testbench_loop_heldout9.json"]
     kept = mod.kept_rows_naming("time_periodic_disturbance", tmp_path)
-    assert sorted(kept) == [("loop", "generic", 3), ("loop", "generic", 4)]
-    assert len(mod.kept_rows_naming("any", tmp_path)) == 3
+    # a row that names the effect only among its set-aside findings is selected too
+    assert sorted(kept) == [("loop", "generic", 3), ("loop", "generic", 4), ("loop", "generic", 6)]
+    assert len(mod.kept_rows_naming("any", tmp_path)) == 4
     assert mod.kept_rows_naming("any", tmp_path, sample_rate=10.0) == {}
     again = [dict(rows[0], unexplained=["jerk_excluded_samples", "time"]),
              dict(rows[1], got="stribeck", correct=True, unexplained=["time"]),
@@ -298,6 +300,15 @@ def test_rerun_kept_selects_rows_and_lists_what_differs(tmp_path):
     assert diffs == [{"json": "diagnose_testbench_loop_heldout9.json", "family": "loop", "robot": "generic", "k": 4,
                       "got": ["ambiguous(time_periodic_disturbance|motor_position_ripple)", "stribeck"],
                       "unexplained": [["jerk_excluded_samples", "time"], ["time"]]}]
+    # two lanes' JSONs merged with --from-json: one summary of the same shape, lanes named, differences kept
+    lanes = []
+    for i, (rr, dd) in enumerate([(again[:1], []), (again[1:2], diffs)]):
+        f = tmp_path / f"lane{i}.json"
+        f.write_text(json.dumps(mod._rerun_summary("time_periodic_disturbance", None, f"{i}/2", rr, [], dd)))
+        lanes.append(str(f))
+    merged = mod.main(["--from-json", ",".join(lanes), "--json", str(tmp_path / "merged.json")])
+    assert merged["logs"] == 2 and merged["lane"] == "0/2+1/2" and merged["differences"] == diffs
+    assert json.loads((tmp_path / "merged.json").read_text())["differences"] == diffs
 
 
 def test_sixteenth_round_rerun_numbers_are_its_json():
@@ -341,3 +352,25 @@ def test_lowrate_unexplained_table_is_the_measured_one():
     assert len(lines) == 3
     for line in lines:
         assert line in doc, line
+
+
+def test_the_roadmaps_wrong_names_are_those_of_the_kept_jsons():
+    """The roadmap's "no wrong name on ... the closed-loop generator's specs 0-N except spec ..." is read off the kept
+    benchmark JSONs (every row of every kept run, each with the latest code that ran it)."""
+    import importlib.util
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    kept = mod.kept_rows_naming("any")
+    wrong = sorted((fam, k) for (fam, _, k), (_, r) in kept.items() if r.get("wrong"))
+    last = max(k for fam, _, k in kept if fam == "loop")
+    text = " ".join((root / "docs" / "readme" / "_roadmap.md").read_text().split())
+    m = re.search(r"closed-loop generator's specs 0-(\d+) except spec(?:s)? ([\d, and]+?) \(", text)
+    assert m, "the roadmap's wrong-name sentence moved"
+    assert int(m.group(1)) == last
+    assert [("loop", int(x)) for x in re.findall(r"\d+", m.group(2))] == [w for w in wrong if w[0] == "loop"]
+    assert not [w for w in wrong if w[0] != "loop"]    # "no wrong name on the open-loop testbench ... synth"
