@@ -13,6 +13,18 @@ from drake_est.diagnose.testbench import generate
 #: *_round10.json
 
 
+def _bench(name: str):
+    """The module benchmarks/<name>.py (the benchmarks are scripts, not a package)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
 def _d(effects, **kw):
     log, truth = generate(effects, **kw)
     return diagnose(log, robot="generic", simulate=False).to_dict(), truth
@@ -120,14 +132,11 @@ def test_abrupt_change_with_position_friction_still_named():
 def test_readme_testbench_counts_are_the_measured_ones():
     """The README's per-family table (testbench, loop, synth/generic, synth/irb140, all) holds the counts that
     the benchmark's summarize() gives for the kept JSON (readme_table renders the lines)."""
-    import importlib.util
     import json
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _bench("bench_diagnose_testbench")
     s = mod.summarize(json.loads((root / "benchmarks" / "results" / "diagnose_testbench.json").read_text())["rows"])
     readme = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
     for line in mod.readme_table(s):
@@ -188,15 +197,12 @@ def test_every_closed_loop_block_row_in_the_docs_is_its_json():
     table) holds the counts that summarize() gives for that JSON, and every such JSON kept in benchmarks/results
     has a run row, a row in the "unexplained" table and one in the ambiguity table or is named in a run row only
     (the older rounds)."""
-    import importlib.util
     import json
     import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _bench("bench_diagnose_testbench")
     readme = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
     cache = {}
 
@@ -244,13 +250,7 @@ def test_every_closed_loop_block_row_in_the_docs_is_its_json():
 def test_summarize_counts_per_family():
     """Rows of several families: the per-family counts add up to the overall ones, synth splits by robot, and a
     not-visible effect is shown in the truth label."""
-    import importlib.util
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _bench("bench_diagnose_testbench")
     base = {"wrong": [], "missed": [], "oov_unexplained": True, "correct": True, "seconds": 1.0}
     rows = [dict(base, k=0, truth="none", got="none"),
             dict(base, k=0, family="loop", truth="stribeck", got="abrupt_change", wrong=["abrupt_change"],
@@ -271,14 +271,9 @@ def test_rerun_kept_selects_rows_and_lists_what_differs(tmp_path):
     """--rerun-kept: kept_jsons skips earlier rounds' copies, kept_rows_naming selects the rows whose truth or
     finding names the effect, and row_differences lists a changed outcome (unexplained compared as a set), not an
     unchanged row nor a row that was not kept."""
-    import importlib.util
     import json
-    from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _bench("bench_diagnose_testbench")
     base = {"family": "loop", "robot": "generic", "sample_rate": 100.0, "wrong": [], "missed": [],
             "oov_unexplained": True, "correct": True, "unexplained": ["time", "jerk_excluded_samples"]}
     rows = [dict(base, k=3, truth="time_periodic_disturbance", got="time_periodic_disturbance"),
@@ -337,14 +332,11 @@ def test_sixteenth_round_rerun_numbers_are_its_json():
 def test_lowrate_unexplained_table_is_the_measured_one():
     """The docs' table of the "unexplained" verdict by sample rate holds the rows that
     benchmarks/bench_unexplained_lowrate.py --markdown prints for the kept JSONs."""
-    import importlib.util
     import json
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("bench_lr", root / "benchmarks" / "bench_unexplained_lowrate.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _bench("bench_unexplained_lowrate")
     doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
     lines = []
     for f in ("unexplained_lowrate_10hz.json", "unexplained_lowrate_50_250hz.json"):
@@ -357,14 +349,11 @@ def test_lowrate_unexplained_table_is_the_measured_one():
 def test_the_roadmaps_wrong_names_are_those_of_the_kept_jsons():
     """The roadmap's "no wrong name on ... the closed-loop generator's specs 0-N except spec ..." is read off the kept
     benchmark JSONs (every row of every kept run, each with the latest code that ran it)."""
-    import importlib.util
     import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _bench("bench_diagnose_testbench")
     kept = mod.kept_rows_naming("any")
     wrong = sorted((fam, k) for (fam, _, k), (_, r) in kept.items() if r.get("wrong"))
     last = max(k for fam, _, k in kept if fam == "loop")
