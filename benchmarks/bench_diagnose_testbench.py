@@ -291,6 +291,25 @@ def _row(k, family, robot, spec, log, d, dt, not_visible=None):
     return r
 
 
+#: the robot models each family's logs are diagnosed with
+FAMILY_ROBOTS = {"testbench": ["generic"], "loop": ["generic"], "synth": ["generic", "irb140"]}
+
+
+def family_log(family, spec):
+    """(Log, truth) of one spec of ``family`` (testbench, loop or synth)."""
+    if family == "testbench":
+        from drake_est.diagnose.testbench import generate
+        return generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
+                        sample_rate=spec["sample_rate"], speeds=spec["speeds"], noise=spec["noise"],
+                        noise_std=spec["noise_std"])
+    if family == "loop":
+        return loop_log(spec)
+    from drake_est.synth import synthesize
+    effs = [e for e in spec["effects"]] or "none"
+    return synthesize(effs, seed=spec["seed"], joints=[1], duration=spec["duration"],
+                      sample_rate=spec["sample_rate"], noise_std=spec["noise_std"])
+
+
 def _run_family(family, specs, rows, start=0, refused=None):
     """Diagnose every spec of one family; rows get k = start + index.  A log that the diagnosis refuses with a
     one-line DataError (e.g. too few steady samples) is listed in ``refused`` (k, reason), not scored."""
@@ -298,24 +317,9 @@ def _run_family(family, specs, rows, start=0, refused=None):
     from drake_est.errors import DataError
     from drake_est.progress import progress
     for k, spec in enumerate(progress(specs, desc=family), start=start):
-        nv = None
-        if family == "testbench":
-            from drake_est.diagnose.testbench import generate
-            log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
-                                  sample_rate=spec["sample_rate"], speeds=spec["speeds"], noise=spec["noise"],
-                                  noise_std=spec["noise_std"])
-            robots = ["generic"]
-        elif family == "loop":
-            log, truth = loop_log(spec)
-            nv = truth["not_visible"]
-            robots = ["generic"]
-        else:
-            from drake_est.synth import synthesize
-            effs = [e for e in spec["effects"]] or "none"
-            log, truth = synthesize(effs, seed=spec["seed"], joints=[1], duration=spec["duration"],
-                                    sample_rate=spec["sample_rate"], noise_std=spec["noise_std"])
-            robots = ["generic", "irb140"]
-        for robot in robots:
+        log, truth = family_log(family, spec)
+        nv = truth["not_visible"] if family == "loop" else None
+        for robot in FAMILY_ROBOTS[family]:
             t0 = time.perf_counter()
             try:
                 d = diagnose(log, robot=robot, seed=0, simulate=False).to_dict()
@@ -382,20 +386,33 @@ def row_differences(kept: dict, rows) -> list:
     return out
 
 
-def _rerun_kept(effect: str, lane: str | None, sample_rate: float | None = None):
+def read_only_file(path) -> set:
+    """The logs an ``--only`` file names: one ``FAMILY K`` per line (``#`` starts a comment)."""
+    out = set()
+    for n, line in enumerate(open(path), 1):
+        line = line.split("#")[0].split()
+        if not line:
+            continue
+        if len(line) != 2 or line[0] not in FAMILY_ORDER or not line[1].isdigit():
+            raise SystemExit(f"--only {path}, line {n}: expected 'FAMILY K' with FAMILY one of "
+                             f"{', '.join(FAMILY_ORDER)}, got '{' '.join(line)}'")
+        out.add((line[0], int(line[1])))
+    return out
+
+
+def _rerun_kept(effect: str, lane: str | None, sample_rate: float | None = None, only: set | None = None):
     """Diagnose again the kept logs whose rows name ``effect`` (``"any"``: all), at ``sample_rate`` only when given
-    (lane ``i/n``: every n-th by cost, from i)."""
+    and among ``only`` {(family, k)} when given (lane ``i/n``: every n-th by cost, from i)."""
     kept = kept_rows_naming(effect, sample_rate=sample_rate)
+    if only is not None:
+        missing = sorted(only - {(f, k) for f, _, k in kept})
+        if missing:
+            raise SystemExit(f"--only: {len(missing)} logs have no kept row naming '{effect}', e.g. {missing[0]}")
+        kept = {key: v for key, v in kept.items() if (key[0], key[2]) in only}
     if not kept:
         raise SystemExit(f"--rerun-kept: no kept row names '{effect}'"
                          + (f" at {sample_rate:g} Hz" if sample_rate is not None else ""))
-    i, n = 0, 1
-    if lane:
-        try:
-            i, n = (int(x) for x in lane.split("/"))
-            assert 0 <= i < n
-        except (ValueError, AssertionError):
-            raise SystemExit(f"--lane: expected I/N with 0 <= I < N, got '{lane}'") from None
+    i, n = _lane(lane)
     kmax = {fam: max(k for f, _, k in kept if f == fam) + 1 for fam, _, _ in kept}
     specs = {"testbench": cases(kmax.get("testbench", 0)), "loop": loop_cases(kmax.get("loop", 0)),
              "synth": synth_cases(kmax.get("synth", 0))}
@@ -406,6 +423,51 @@ def _rerun_kept(effect: str, lane: str | None, sample_rate: float | None = None)
         _run_family(fam, [specs[fam][k]], rows, k, refused)
     rows = [r for r in rows if (r["family"], r["robot"], r["k"]) in kept]
     return _rerun_summary(effect, sample_rate, f"{i}/{n}", rows, refused, row_differences(kept, rows))
+
+
+def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float | None = None,
+                         results_dir=None) -> dict:
+    """The kept logs (every kept row, at ``sample_rate`` only when given; lane ``i/n``) whose preparation
+    (:func:`drake_est.diagnose.nominal.prepare`, no diagnosis) records ``count`` > 0 for some joint, e.g.
+    ``beyond_training_speeds``: the logs a change keyed on it can touch.  {"logs": n, "touched": [[family, k,
+    {joint: count}], ...], "refused": [...]}."""
+    from drake_est.diagnose.nominal import prepare
+    from drake_est.errors import DataError
+    from drake_est.progress import progress
+    kept = kept_rows_naming("any", results_dir, sample_rate=sample_rate)
+    i, n = _lane(lane)
+    kmax = {fam: max(k for f, _, k in kept if f == fam) + 1 for fam, _, _ in kept}
+    specs = {"testbench": cases(kmax.get("testbench", 0)), "loop": loop_cases(kmax.get("loop", 0)),
+             "synth": synth_cases(kmax.get("synth", 0))}
+    keys = sorted(kept, key=lambda key: (FAMILY_ORDER.index(key[0]), key[2], key[1]))[i::n]
+    touched, refused, logs = [], [], {}
+    for fam, robot, k in progress(keys, desc=f"prepare ({count})"):
+        if (fam, k) not in logs:
+            logs.clear()
+            logs[(fam, k)] = family_log(fam, specs[fam][k])[0]
+        try:
+            prep = prepare(logs[(fam, k)], robot=robot)
+        except DataError as e:
+            refused.append([fam, robot, k, str(e)])
+            continue
+        got = {str(j): int(jd.counts[count]) for j, jd in prep.joints.items() if jd.counts.get(count)}
+        if got and [fam, k] not in [t[:2] for t in touched]:
+            touched.append([fam, k, got])
+    print(f"{len(keys)} kept rows prepared (lane {i}/{n}); {len(touched)} logs record {count}: "
+          + ", ".join(f"{f} {k}" for f, k, _ in touched))
+    return {"count": count, "sample_rate": sample_rate, "lane": f"{i}/{n}", "logs": len(keys), "touched": touched,
+            "refused": refused}
+
+
+def _lane(lane):
+    if not lane:
+        return 0, 1
+    try:
+        i, n = (int(x) for x in lane.split("/"))
+        assert 0 <= i < n
+    except (ValueError, AssertionError):
+        raise SystemExit(f"--lane: expected I/N with 0 <= I < N, got '{lane}'") from None
+    return i, n
 
 
 def _rerun_summary(effect, sample_rate, lane, rows, refused, diffs) -> dict:
@@ -437,15 +499,44 @@ def main(argv=None):
     ap.add_argument("--lane", default=None, metavar="I/N", help="with --rerun-kept: this process's share of the logs")
     ap.add_argument("--sample-rate", type=float, default=None,
                     help="with --rerun-kept: only the kept rows at this sample rate [Hz] (EFFECT 'any': all of them)")
+    ap.add_argument("--only", default=None, metavar="FILE",
+                    help="with --rerun-kept: only the logs FILE names, one 'FAMILY K' per line (e.g. the logs a "
+                         "change can touch, found without diagnosing them)")
+    ap.add_argument("--kept-with-count", default=None, metavar="COUNT",
+                    help="prepare every kept log (no diagnosis; --lane, --sample-rate apply) and list those whose "
+                         "preparation records COUNT for some joint (e.g. beyond_training_speeds); --only-out FILE "
+                         "writes them as an --only file")
+    ap.add_argument("--only-out", default=None, metavar="FILE", help="with --kept-with-count: the --only file")
     a = ap.parse_args(argv)
+    if a.kept_with_count:
+        out = kept_logs_with_count(a.kept_with_count, a.lane, a.sample_rate)
+        if a.only_out:
+            with open(a.only_out, "w") as f:
+                f.write("".join(f"{fam} {k}\n" for fam, k, _ in out["touched"]))
+        if a.json:
+            from drake_est.jsonutil import dump_json
+            dump_json(out, a.json)
+        return out
     if a.rerun_kept:
-        out = _rerun_kept(a.rerun_kept, a.lane, a.sample_rate)
+        out = _rerun_kept(a.rerun_kept, a.lane, a.sample_rate, None if a.only is None else read_only_file(a.only))
         if a.json:
             from drake_est.jsonutil import dump_json
             dump_json(out, a.json)
         return out
     if a.from_json:
         parts = [json.load(open(f.strip())) for f in a.from_json.split(",") if f.strip()]
+        if parts and all("touched" in d for d in parts):       # --kept-with-count lanes
+            out = {"count": parts[0]["count"], "sample_rate": parts[0].get("sample_rate"),
+                   "lane": "+".join(d.get("lane", "?") for d in parts), "logs": sum(d["logs"] for d in parts),
+                   "touched": sorted((t for d in parts for t in d["touched"]),
+                                     key=lambda t: (FAMILY_ORDER.index(t[0]), t[1])),
+                   "refused": [r for d in parts for r in d["refused"]]}
+            print(f"{out['logs']} kept rows prepared (lanes {out['lane']}); {len(out['touched'])} logs record "
+                  f"{out['count']}: " + ", ".join(f"{f} {k}" for f, k, _ in out["touched"]))
+            if a.json:
+                from drake_est.jsonutil import dump_json
+                dump_json(out, a.json)
+            return out
         rows = [r for d in parts for r in d["rows"]]
         if parts and all("differences" in d for d in parts):
             out = _rerun_summary(parts[0]["effect"], parts[0].get("sample_rate"),

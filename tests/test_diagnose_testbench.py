@@ -358,8 +358,47 @@ def test_the_roadmaps_wrong_names_are_those_of_the_kept_jsons():
     wrong = sorted((fam, k) for (fam, _, k), (_, r) in kept.items() if r.get("wrong"))
     last = max(k for fam, _, k in kept if fam == "loop")
     text = " ".join((root / "docs" / "readme" / "_roadmap.md").read_text().split())
-    m = re.search(r"closed-loop generator's specs 0-(\d+) except spec(?:s)? ([\d, and]+?) \(", text)
+    m = re.search(r"closed-loop generator's specs 0-(\d+)(?: except spec(?:s)? ([\d, and]+?))? \(", text)
     assert m, "the roadmap's wrong-name sentence moved"
     assert int(m.group(1)) == last
-    assert [("loop", int(x)) for x in re.findall(r"\d+", m.group(2))] == [w for w in wrong if w[0] == "loop"]
+    assert [("loop", int(x)) for x in re.findall(r"\d+", m.group(2) or "")] == [w for w in wrong if w[0] == "loop"]
     assert not [w for w in wrong if w[0] != "loop"]    # "no wrong name on the open-loop testbench ... synth"
+
+
+def test_eighteenth_round_numbers_are_its_jsons():
+    """The eighteenth round's counts: the kept logs the one-level rule touches (found by preparing every kept log),
+    the rerun of those, and the rerun of the rule tried without the one-level condition."""
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    res = root / "benchmarks" / "results"
+    doc = " ".join((root / "docs" / "readme" / "diagnose_testbench.md").read_text().split())
+    t = json.loads((res / "diagnose_kept_beyond_training_speeds_round18.json").read_text())
+    assert t["count"] == "beyond_training_speeds" and not t["refused"]
+    assert f"of the {t['logs']:,} kept rows, **{len(t['touched'])} logs**" in doc
+    d = json.loads((res / "diagnose_rerun_kept_one_level_round18.json").read_text())
+    assert sorted((f, k) for f, k, _ in t["touched"]) == sorted((r["family"], r["k"]) for r in d["rows"])
+    assert f"**{d['logs']} kept rows, {len(d['differences'])} differing**" in doc
+    diff = {x["k"]: x for x in d["differences"]}
+    assert diff[2122]["wrong"] == [["position_dependent_load"], []]
+    assert diff[981]["correct"] == [True, False]
+    a = json.loads((res / "diagnose_rerun_kept_10hz_beyond_training_any_spread_round18.json").read_text())
+    assert f"**{a['logs']} kept rows, {len(a['differences'])} differing**" in doc
+    assert {x["k"]: x for x in a["differences"]}[195]["wrong"] == [[], ["position_dependent_load"]]
+    # the second change: the rerun of the kept rows naming an asymmetric level, and the seventeenth round's code on
+    # the differing ones (the rows that code gives the same here are this CPU's)
+    r = json.loads((res / "diagnose_rerun_kept_asymmetric_round18.json").read_text())
+    assert f"**{r['logs']} kept rows, {len(r['differences'])} differing**" in doc
+    old = {x["k"]: x for x in json.loads(
+        (res / "diagnose_rerun_kept_asymmetric_differing_seventeenth_code_round18.json").read_text())["rows"]}
+    new = {x["k"]: x for x in r["rows"]}
+    fields = ("got", "correct", "wrong", "missed", "oov_unexplained", "unexplained")
+    cpu = sorted(k for k in old if all(old[k].get(f) == new[k].get(f) for f in fields))
+    assert cpu == [1749, 2057, 2697, 2805, 3091, 3137, 3201]
+    assert "The other seven (" + ", ".join(map(str, cpu)) + ") are this CPU's" in doc
+    assert sorted({x["k"] for x in r["differences"]} - set(cpu)) == [1661, 2079, 3840]
+    # every kept row of specs 0-3899: none names a cause that was not planted
+    kept = _bench("bench_diagnose_testbench").kept_rows_naming("any")
+    k3899 = [row for (fam, _, k), (_, row) in kept.items() if fam != "loop" or k < 3900]
+    assert f"of the {len(k3899):,} kept rows of specs 0-3899" in doc and not [x for x in k3899 if x.get("wrong")]

@@ -43,6 +43,11 @@ OUTLIER_MAD = 6.0
 #: :func:`prepare`, on the final residual after the search) may flag; above it the tails are structure the model
 #: misses (e.g. one direction of an asymmetric Coulomb level), not outliers, and nothing is screened
 OUTLIER_MAX_SHARE = 0.05
+#: held-out rows faster than this multiple of the fastest training row are not used to judge a model where the
+#: training rows see one speed level (a log split in time blocks only; see :func:`beyond_training_speeds`)
+EXTRAPOLATION_FACTOR = 1.5
+#: training speeds whose 95th and 5th percentiles of |qd| lie within this ratio are one speed level
+ONE_LEVEL_SPREAD = 2.0
 #: Savitzky-Golay window for velocities/accelerations computed from positions [s]
 DERIV_WINDOW_S = 0.1
 
@@ -179,6 +184,27 @@ def block_split(t, rows, n_blocks=None):
     b = np.minimum(((t[rows] - t0) / max(t1 - t0, 1e-12) * n_blocks).astype(int), n_blocks - 1)
     train = (b % 2) == 0
     return train, ~train
+
+
+def beyond_training_speeds(v, train, factor: float = EXTRAPOLATION_FACTOR,
+                           one_level: float = ONE_LEVEL_SPREAD) -> np.ndarray:
+    """Validation rows (``~train``) faster than ``factor`` times the fastest training row, where the training rows
+    see one speed level (95th / 5th percentile of their |qd| below ``one_level``); else none.
+
+    On one speed level [qd, sign(qd)] of (9.2) are nearly collinear: kv and kc are not told apart, nor an abrupt
+    change's [dkv, dkc] step or a speed law's terms, and every candidate extrapolates to a faster held-out row with
+    an error that grows with |qd|, so that one such row can decide a comparison that the speeds the fit saw do not.
+    Where the training speeds spread wider the speed terms are identified and a faster held-out row is a fair test
+    (it also keeps a position load fitted for a backlash from being accepted: closed-loop spec 195)."""
+    av = np.abs(np.asarray(v, float))
+    train = np.asarray(train, bool)
+    none = np.zeros(av.shape, bool)
+    if not train.any():
+        return none
+    lo, hi = np.quantile(av[train], [0.05, 0.95])
+    if hi >= one_level * lo:
+        return none
+    return ~train & (av > factor * float(av[train].max()))
 
 
 def _load_nuisance(q) -> list:
@@ -671,6 +697,11 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
             # several logs: whole logs are held out (odd-numbered logs validate, even-numbered train)
             li = np.asarray(log.channels["log_index"]).astype(int)[jd.rows]
             jd.train, jd.val = (li % 2) == 0, (li % 2) == 1
+        else:
+            far = beyond_training_speeds(jd.v[jd.rows], jd.train)
+            if far.any():
+                jd.counts["beyond_training_speeds"] = int(far.sum())
+                jd.rows, jd.train, jd.val = jd.rows[~far], jd.train[~far], jd.val[~far]
         if jd.train.sum() < 100 or jd.val.sum() < 100:
             prep.skipped[j] = "too few samples in the training or validation half"
             continue

@@ -8,7 +8,7 @@ import numpy as np
 
 from drake_est.data import torque_unit
 from drake_est.diagnose.competition import ambiguous_rivals
-from drake_est.diagnose.nominal import OUTLIER_MAX_SHARE, n_blocks_for
+from drake_est.diagnose.nominal import EXTRAPOLATION_FACTOR, OUTLIER_MAX_SHARE, n_blocks_for
 from drake_est.diagnose.multilog import across_logs_evidence, per_log_table
 
 EFFECT_TEXT = {
@@ -329,6 +329,10 @@ def markdown(d: dict) -> str:
         L.append(f"- joint {j}: {c.get('selected', 0)} samples selected by (9.9); excluded {c.get('near_zero_velocity', 0)} "
                  f"near zero velocity, {c.get('accelerating', 0)} accelerating, {c.get('outliers', 0)} outliers (> 6 MAD)"
                  + (f", {c['thinned']} thinned" if c.get("thinned") else "")
+                 + (f", {c['beyond_training_speeds']} held-out samples faster than {EXTRAPOLATION_FACTOR:g} times the "
+                    "fastest training sample (not judged: the training samples see one speed level, and every model "
+                    "extrapolates there)"
+                    if c.get("beyond_training_speeds") else "")
                  + "".join(f" (the {when} screen was not applied: it flagged {c[key]} samples, more than "
                            f"{100 * OUTLIER_MAX_SHARE:g} % of the rows, so the tails are misfit, not outliers)"
                            for when, key in (("nominal", "outlier_screen_skipped"),
