@@ -439,23 +439,28 @@ def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float
     kmax = {fam: max(k for f, _, k in kept if f == fam) + 1 for fam, _, _ in kept}
     specs = {"testbench": cases(kmax.get("testbench", 0)), "loop": loop_cases(kmax.get("loop", 0)),
              "synth": synth_cases(kmax.get("synth", 0))}
-    keys = sorted(kept, key=lambda key: (FAMILY_ORDER.index(key[0]), key[2], key[1]))[i::n]
-    touched, refused, logs = [], [], {}
-    for fam, robot, k in progress(keys, desc=f"prepare ({count})"):
-        if (fam, k) not in logs:
-            logs.clear()
-            logs[(fam, k)] = family_log(fam, specs[fam][k])[0]
-        try:
-            prep = prepare(logs[(fam, k)], robot=robot)
-        except DataError as e:
-            refused.append([fam, robot, k, str(e)])
-            continue
-        got = {str(j): int(jd.counts[count]) for j, jd in prep.joints.items() if jd.counts.get(count)}
-        if got and [fam, k] not in [t[:2] for t in touched]:
+    # lanes share out logs, not rows (a synth log has a row per robot)
+    robots = {}
+    for fam, robot, k in kept:
+        robots.setdefault((fam, k), []).append(robot)
+    lane_logs = sorted(robots, key=lambda x: (FAMILY_ORDER.index(x[0]), x[1]))[i::n]
+    n_rows = sum(len(robots[x]) for x in lane_logs)
+    touched, refused = [], []
+    for fam, k in progress(lane_logs, desc=f"prepare ({count})"):
+        log = family_log(fam, specs[fam][k])[0]
+        got = {}
+        for robot in sorted(robots[(fam, k)]):
+            try:
+                prep = prepare(log, robot=robot)
+            except DataError as e:
+                refused.append([fam, robot, k, str(e)])
+                continue
+            got.update({str(j): int(jd.counts[count]) for j, jd in prep.joints.items() if jd.counts.get(count)})
+        if got:
             touched.append([fam, k, got])
-    print(f"{len(keys)} kept rows prepared (lane {i}/{n}); {len(touched)} logs record {count}: "
+    print(f"{n_rows} kept rows prepared (lane {i}/{n}); {len(touched)} logs record {count}: "
           + ", ".join(f"{f} {k}" for f, k, _ in touched))
-    return {"count": count, "sample_rate": sample_rate, "lane": f"{i}/{n}", "logs": len(keys), "touched": touched,
+    return {"count": count, "sample_rate": sample_rate, "lane": f"{i}/{n}", "logs": n_rows, "touched": touched,
             "refused": refused}
 
 
