@@ -45,6 +45,24 @@ def require_module():
     return _require_module
 
 
+def bench_module(name: str):
+    """A fresh module object of ``benchmarks/NAME.py`` (the benchmark scripts are not a package)."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def closed_loop_case(k: int):
+    """(benchmark module, spec, log, truth) of the closed-loop benchmark's spec ``k``."""
+    mod = bench_module("bench_diagnose_testbench")
+    spec = mod.loop_cases(k + 1)[k]
+    return (mod, spec) + tuple(mod.loop_log(spec))
+
+
 BROWSER_SHOT = Path(__file__).resolve().parents[2] / "shared" / "browser" / "shot"
 
 

@@ -209,13 +209,8 @@ def test_bad_input_raises_one_line_errors():
 
 
 def _axis_generator():
-    import importlib.util
-    from pathlib import Path
-    spec = importlib.util.spec_from_file_location(
-        "bench_diagnose", Path(__file__).parents[1] / "benchmarks" / "bench_diagnose.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod.axis_log
+    from conftest import bench_module
+    return bench_module("bench_diagnose").axis_log
 
 
 @pytest.mark.parametrize("effect, duration, rate", [("none", 120.0, 1000.0), ("asymmetric_coulomb", 300.0, 10.0),

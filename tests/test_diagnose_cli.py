@@ -94,11 +94,8 @@ def test_run_demo(tmp_path):
 @pytest.mark.benchmark
 def test_confusion_matrix_benchmark(tmp_path):
     """>= 60 randomized logs (9 classes x 7 seeds): every top finding must name the hidden effect."""
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("bench_diagnose", Path(__file__).parents[1] / "benchmarks" /
-                                                  "bench_diagnose.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    from conftest import bench_module
+    mod = bench_module("bench_diagnose")
     rows = mod.confusion(7, Path("/tmp/drake_est_bench_diagnose"))
     mod.print_matrix(rows)
     assert len(rows) >= 60

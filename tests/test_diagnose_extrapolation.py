@@ -1,11 +1,9 @@
 """Held-out rows beyond the training speeds (nominal.beyond_training_speeds): left out of the judgement and
 counted, in a log split in time blocks; a log split by whole logs keeps them."""
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from conftest import closed_loop_case
 from drake_est.diagnose import diagnose, diagnose_logs
 from drake_est.diagnose.nominal import EXTRAPOLATION_FACTOR, ONE_LEVEL_SPREAD, beyond_training_speeds
 from drake_est.diagnose.report import markdown
@@ -28,22 +26,12 @@ def test_only_held_out_rows_far_beyond_one_training_speed_level():
     assert EXTRAPOLATION_FACTOR == 1.5 and ONE_LEVEL_SPREAD == 2.0
 
 
-def _loop_log(k):
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_diagnose_testbench.py"
-    spec_ = importlib.util.spec_from_file_location("bench_diagnose_testbench", path)
-    mod = importlib.util.module_from_spec(spec_)
-    spec_.loader.exec_module(mod)
-    spec = mod.loop_cases(k + 1)[k]
-    log, truth = mod.loop_log(spec)
-    return mod, spec, log, truth
-
-
 def test_one_fast_held_out_row_no_longer_decides_spec_2122():
     """Closed-loop spec 2122 (10 Hz, an abrupt change and a ripple): every training row lies at 0.06-0.10 rad/s and
     one held-out row at 0.49 rad/s, where the nominal kv and the change's [dkv, dkc] step (fitted on one speed
     level) extrapolate; that row made the step raise the held-out RMSE and a position load take the level change
     (a wrong name).  Left out (and counted), the change is named (ambiguous with the load) and nothing wrong."""
-    mod, spec, log, truth = _loop_log(2122)
+    mod, spec, log, truth = closed_loop_case(2122)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert d["data"]["excluded"]["1"]["beyond_training_speeds"] == 1
     assert "1 held-out samples faster than 1.5 times the fastest training sample" in markdown(d)
@@ -75,7 +63,7 @@ def test_the_logs_a_count_touches_are_found_without_diagnosing(tmp_path):
     held-out rows left out), written as an --only file that --rerun-kept reads back."""
     import json
 
-    mod, spec, log, truth = _loop_log(2122)
+    mod, spec, log, truth = closed_loop_case(2122)
     rows = [{"family": "loop", "robot": "generic", "k": k, "sample_rate": 10.0, "truth": "x", "got": "x"}
             for k in (2121, 2122)]
     (tmp_path / "diagnose_testbench_loop_heldout2100.json").write_text(json.dumps({"rows": rows}))

@@ -1,11 +1,9 @@
 """A constant torque while moving (an asymmetric Coulomb level) against a position load that contains it
 (core._is_offset, core._contains): ambiguous when the load predicts the held-out data as well, even where the
 load's F-test, with its shape's extra parameters, is not significant."""
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
+from conftest import closed_loop_case
 from drake_est.diagnose import core, diagnose
 from drake_est.diagnose.nominal import prepare
 from drake_est.diagnose.testbench import generate
@@ -27,21 +25,12 @@ def test_an_asymmetric_level_is_an_offset_that_a_load_contains():
             assert not core._contains(prep, cands[other], asym), other
 
 
-def _loop_log(k):
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_diagnose_testbench.py"
-    spec_ = importlib.util.spec_from_file_location("bench_diagnose_testbench", path)
-    mod = importlib.util.module_from_spec(spec_)
-    spec_.loader.exec_module(mod)
-    spec = mod.loop_cases(k + 1)[k]
-    return (mod, spec) + tuple(mod.loop_log(spec))
-
-
 def test_the_offset_of_a_load_is_not_named_as_an_asymmetric_level():
     """Closed-loop spec 3840 (10 Hz): a third-size position load that the generator counts as not visible; its
     constant part over the positions visited was named `asymmetric_coulomb` outright (the load, 10 parameters,
     lowered the held-out RMSE almost as much, 3.7 % against 3.9 %, but was not significant).  Now the two are
     reported ambiguous: no wrong name."""
-    mod, spec, log, truth = _loop_log(3840)
+    mod, spec, log, truth = closed_loop_case(3840)
     assert truth["not_visible"] and "position_dependent_load" in truth["not_visible"]
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert not mod.judge(spec, d, truth["not_visible"])["wrong"]

@@ -7,22 +7,11 @@ import numpy as np
 import pytest
 
 from drake_est.diagnose import diagnose
+from conftest import bench_module
 from drake_est.diagnose.testbench import generate
 
 #: closed-loop blocks whose rows the eleventh round (the snap test) changed: their tenth-round JSONs are kept as
 #: *_round10.json
-
-
-def _bench(name: str):
-    """The module benchmarks/<name>.py (the benchmarks are scripts, not a package)."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def _d(effects, **kw):
@@ -136,7 +125,7 @@ def test_readme_testbench_counts_are_the_measured_ones():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    mod = _bench("bench_diagnose_testbench")
+    mod = bench_module("bench_diagnose_testbench")
     s = mod.summarize(json.loads((root / "benchmarks" / "results" / "diagnose_testbench.json").read_text())["rows"])
     readme = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
     for line in mod.readme_table(s):
@@ -202,7 +191,7 @@ def test_every_closed_loop_block_row_in_the_docs_is_its_json():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    mod = _bench("bench_diagnose_testbench")
+    mod = bench_module("bench_diagnose_testbench")
     readme = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
     cache = {}
 
@@ -250,7 +239,7 @@ def test_every_closed_loop_block_row_in_the_docs_is_its_json():
 def test_summarize_counts_per_family():
     """Rows of several families: the per-family counts add up to the overall ones, synth splits by robot, and a
     not-visible effect is shown in the truth label."""
-    mod = _bench("bench_diagnose_testbench")
+    mod = bench_module("bench_diagnose_testbench")
     base = {"wrong": [], "missed": [], "oov_unexplained": True, "correct": True, "seconds": 1.0}
     rows = [dict(base, k=0, truth="none", got="none"),
             dict(base, k=0, family="loop", truth="stribeck", got="abrupt_change", wrong=["abrupt_change"],
@@ -273,7 +262,7 @@ def test_rerun_kept_selects_rows_and_lists_what_differs(tmp_path):
     unchanged row nor a row that was not kept."""
     import json
 
-    mod = _bench("bench_diagnose_testbench")
+    mod = bench_module("bench_diagnose_testbench")
     base = {"family": "loop", "robot": "generic", "sample_rate": 100.0, "wrong": [], "missed": [],
             "oov_unexplained": True, "correct": True, "unexplained": ["time", "jerk_excluded_samples"]}
     rows = [dict(base, k=3, truth="time_periodic_disturbance", got="time_periodic_disturbance"),
@@ -336,7 +325,7 @@ def test_lowrate_unexplained_table_is_the_measured_one():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    mod = _bench("bench_unexplained_lowrate")
+    mod = bench_module("bench_unexplained_lowrate")
     doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
     lines = []
     for f in ("unexplained_lowrate_10hz.json", "unexplained_lowrate_50_250hz.json"):
@@ -353,7 +342,7 @@ def test_the_roadmaps_wrong_names_are_those_of_the_kept_jsons():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    mod = _bench("bench_diagnose_testbench")
+    mod = bench_module("bench_diagnose_testbench")
     kept = mod.kept_rows_naming("any")
     wrong = sorted((fam, k) for (fam, _, k), (_, r) in kept.items() if r.get("wrong"))
     last = max(k for fam, _, k in kept if fam == "loop")
@@ -399,6 +388,6 @@ def test_eighteenth_round_numbers_are_its_jsons():
     assert "The other seven (" + ", ".join(map(str, cpu)) + ") are this CPU's" in doc
     assert sorted({x["k"] for x in r["differences"]} - set(cpu)) == [1661, 2079, 3840]
     # every kept row of specs 0-3899: none names a cause that was not planted
-    kept = _bench("bench_diagnose_testbench").kept_rows_naming("any")
+    kept = bench_module("bench_diagnose_testbench").kept_rows_naming("any")
     k3899 = [row for (fam, _, k), (_, row) in kept.items() if fam != "loop" or k < 3900]
     assert f"of the {len(k3899):,} kept rows of specs 0-3899" in doc and not [x for x in k3899 if x.get("wrong")]

@@ -3,12 +3,10 @@ compiled and Python kernels agree, its visibility rule drops effects a log canno
 its logs (which pass today) stay right."""
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from conftest import bench_module
 from drake_est.diagnose.testbench_loop import (P_DT, P_NSUB, P_PREF, _draw, _multisine, _plant, _quintic_moves,
                                                generate, simulate)
 
@@ -152,18 +150,10 @@ def test_oov_effects_change_the_torque():
         assert truth["visible_share"][eff] > 0.1
 
 
-def _bench():
-    root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("bench_tb", root / "benchmarks" / "bench_diagnose_testbench.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def test_judge_optional_effects():
     """A not-visible effect is neither required nor a wrong name; a not-visible out-of-vocabulary effect needs
     no unexplained entry."""
-    b = _bench()
+    b = bench_module("bench_diagnose_testbench")
     d = {"findings": [{"effect": "stribeck"}], "unexplained": []}
     assert b.judge({"effects": {"stribeck": 1.0}}, d)["correct"]
     assert b.judge({"effects": {}}, d)["wrong"] == ["stribeck"]
@@ -179,7 +169,7 @@ def test_judge_optional_effects():
 @pytest.mark.parametrize("k", [3, 6, 16])
 def test_diagnosis_spot_checks(k):
     from drake_est.diagnose import diagnose
-    b = _bench()
+    b = bench_module("bench_diagnose_testbench")
     spec = b.loop_cases(k + 1)[k]
     log, truth = b.loop_log(spec)
     d = diagnose(log, robot="generic", simulate=False).to_dict()

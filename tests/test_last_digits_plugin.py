@@ -1,18 +1,13 @@
 """benchmarks/last_digits_plugin.py: the development plugin that moves the diagnosis' input by a few ulps (another
 CPU's last digits) acts on the generator's reference and on the prepared torque, and leaves the caller's log alone."""
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from conftest import bench_module
+
 
 def _plugin():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "last_digits_plugin.py"
-    spec = importlib.util.spec_from_file_location("last_digits_plugin", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return bench_module("last_digits_plugin")
 
 
 def test_install_moves_the_reference_and_the_prepared_torque(monkeypatch):
