@@ -413,9 +413,7 @@ def _rerun_kept(effect: str, lane: str | None, sample_rate: float | None = None,
         raise SystemExit(f"--rerun-kept: no kept row names '{effect}'"
                          + (f" at {sample_rate:g} Hz" if sample_rate is not None else ""))
     i, n = _lane(lane)
-    kmax = {fam: max(k for f, _, k in kept if f == fam) + 1 for fam, _, _ in kept}
-    specs = {"testbench": cases(kmax.get("testbench", 0)), "loop": loop_cases(kmax.get("loop", 0)),
-             "synth": synth_cases(kmax.get("synth", 0))}
+    specs = _specs_of(kept)
     jobs = sorted({(fam, k) for fam, _, k in kept}, key=lambda j: (-specs[j[0]][j[1]]["sample_rate"]
                                                                    * specs[j[0]][j[1]]["duration"], j))
     rows, refused = [], []
@@ -436,9 +434,7 @@ def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float
     from drake_est.progress import progress
     kept = kept_rows_naming("any", results_dir, sample_rate=sample_rate)
     i, n = _lane(lane)
-    kmax = {fam: max(k for f, _, k in kept if f == fam) + 1 for fam, _, _ in kept}
-    specs = {"testbench": cases(kmax.get("testbench", 0)), "loop": loop_cases(kmax.get("loop", 0)),
-             "synth": synth_cases(kmax.get("synth", 0))}
+    specs = _specs_of(kept)
     # lanes share out logs, not rows (a synth log has a row per robot)
     robots = {}
     for fam, robot, k in kept:
@@ -458,10 +454,29 @@ def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float
             got.update({str(j): int(jd.counts[count]) for j, jd in prep.joints.items() if jd.counts.get(count)})
         if got:
             touched.append([fam, k, got])
-    print(f"{n_rows} kept rows prepared (lane {i}/{n}); {len(touched)} logs record {count}: "
-          + ", ".join(f"{f} {k}" for f, k, _ in touched))
-    return {"count": count, "sample_rate": sample_rate, "lane": f"{i}/{n}", "logs": n_rows, "touched": touched,
-            "refused": refused}
+    return _touched_summary({"count": count, "sample_rate": sample_rate, "lane": f"{i}/{n}", "logs": n_rows,
+                             "touched": touched, "refused": refused})
+
+
+def _touched_summary(out) -> dict:
+    """The JSON of a --kept-with-count run (one lane, or lanes merged with --from-json), printed as it is made."""
+    print(f"{out['logs']} kept rows prepared (lane {out['lane']}); {len(out['touched'])} logs record "
+          f"{out['count']}: " + ", ".join(f"{f} {k}" for f, k, _ in out["touched"]))
+    return out
+
+
+def _specs_of(kept) -> dict:
+    """{family: its specs 0..K}, K the largest k of that family among the ``kept`` rows' keys."""
+    kmax = {fam: max(k for f, _, k in kept if f == fam) + 1 for fam, _, _ in kept}
+    return {"testbench": cases(kmax.get("testbench", 0)), "loop": loop_cases(kmax.get("loop", 0)),
+            "synth": synth_cases(kmax.get("synth", 0))}
+
+
+def _write_json(out, path) -> None:
+    """``out`` to ``path`` (nothing when ``path`` is None)."""
+    if path:
+        from drake_est.jsonutil import dump_json
+        dump_json(out, path)
 
 
 def _lane(lane):
@@ -518,29 +533,22 @@ def main(argv=None):
         if a.only_out:
             with open(a.only_out, "w") as f:
                 f.write("".join(f"{fam} {k}\n" for fam, k, _ in out["touched"]))
-        if a.json:
-            from drake_est.jsonutil import dump_json
-            dump_json(out, a.json)
+        _write_json(out, a.json)
         return out
     if a.rerun_kept:
         out = _rerun_kept(a.rerun_kept, a.lane, a.sample_rate, None if a.only is None else read_only_file(a.only))
-        if a.json:
-            from drake_est.jsonutil import dump_json
-            dump_json(out, a.json)
+        _write_json(out, a.json)
         return out
     if a.from_json:
         parts = [json.load(open(f.strip())) for f in a.from_json.split(",") if f.strip()]
         if parts and all("touched" in d for d in parts):       # --kept-with-count lanes
-            out = {"count": parts[0]["count"], "sample_rate": parts[0].get("sample_rate"),
-                   "lane": "+".join(d.get("lane", "?") for d in parts), "logs": sum(d["logs"] for d in parts),
-                   "touched": sorted((t for d in parts for t in d["touched"]),
-                                     key=lambda t: (FAMILY_ORDER.index(t[0]), t[1])),
-                   "refused": [r for d in parts for r in d["refused"]]}
-            print(f"{out['logs']} kept rows prepared (lanes {out['lane']}); {len(out['touched'])} logs record "
-                  f"{out['count']}: " + ", ".join(f"{f} {k}" for f, k, _ in out["touched"]))
-            if a.json:
-                from drake_est.jsonutil import dump_json
-                dump_json(out, a.json)
+            out = _touched_summary({
+                "count": parts[0]["count"], "sample_rate": parts[0].get("sample_rate"),
+                "lane": "+".join(d.get("lane", "?") for d in parts), "logs": sum(d["logs"] for d in parts),
+                "touched": sorted((t for d in parts for t in d["touched"]),
+                                  key=lambda t: (FAMILY_ORDER.index(t[0]), t[1])),
+                "refused": [r for d in parts for r in d["refused"]]})
+            _write_json(out, a.json)
             return out
         rows = [r for d in parts for r in d["rows"]]
         if parts and all("differences" in d for d in parts):
@@ -548,15 +556,11 @@ def main(argv=None):
                                  "+".join(d.get("lane", "?") for d in parts), rows,
                                  [r for d in parts for r in d["refused"]],
                                  [x for d in parts for x in d["differences"]])
-            if a.json:
-                from drake_est.jsonutil import dump_json
-                dump_json(out, a.json)
+            _write_json(out, a.json)
             return out
         summary = summarize(rows)
         _print(summary)
-        if a.json:
-            from drake_est.jsonutil import dump_json
-            dump_json(summary, a.json)
+        _write_json(summary, a.json)
         return summary
     fams = [f.strip() for f in a.family.split(",") if f.strip()]
     for f in fams:
@@ -575,9 +579,7 @@ def main(argv=None):
         print(f"{len(refused)} log(s) refused by the diagnosis (not scored): " +
               "; ".join(f"{r['family']} {r['k']}" for r in refused))
     _print(summary)
-    if a.json:
-        from drake_est.jsonutil import dump_json
-        dump_json(summary, a.json)
+    _write_json(summary, a.json)
     return summary
 
 
