@@ -1120,7 +1120,7 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
                     new += int(bad.sum())
                     jd.counts["outliers"] = int(jd.counts.get("outliers", 0) + bad.sum())
                     jd.counts["outliers_found_after_extension"] = int(bad.sum())
-                    jd.rows, jd.train, jd.val = jd.rows[~bad], jd.train[~bad], jd.val[~bad]
+                    jd.drop_rows(bad)
         if not new and not inertia_done and model.exts:
             # the inertia with the findings as regressors (closed-loop bias), once; the search is repeated
             # when it moves

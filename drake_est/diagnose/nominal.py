@@ -81,6 +81,11 @@ class JointData:
         state["scan_plans"] = {}
         return state
 
+    def drop_rows(self, mask) -> None:
+        """Stop using the rows where ``mask`` (over ``rows``) is True: ``rows``, ``train`` and ``val`` together."""
+        keep = ~np.asarray(mask, bool)
+        self.rows, self.train, self.val = self.rows[keep], self.train[keep], self.val[keep]
+
     @property
     def y(self) -> np.ndarray:
         """Torque not explained by the rigid-body model, at the used rows."""
@@ -701,7 +706,7 @@ def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MA
             far = beyond_training_speeds(jd.v[jd.rows], jd.train)
             if far.any():
                 jd.counts["beyond_training_speeds"] = int(far.sum())
-                jd.rows, jd.train, jd.val = jd.rows[~far], jd.train[~far], jd.val[~far]
+                jd.drop_rows(far)
         if jd.train.sum() < 100 or jd.val.sum() < 100:
             prep.skipped[j] = "too few samples in the training or validation half"
             continue
