@@ -19,6 +19,8 @@ from drake_est.diagnose.core import _above_quantization
 from drake_est.diagnose.nominal import select_rows
 from drake_est.diagnose.testbench import generate
 
+from conftest import bench_module
+
 
 def _names(rep):
     d = rep.to_dict()
@@ -109,10 +111,7 @@ def test_quantization_bound_rejects_fitting_the_rounding_error():
 # --- the closed-loop generator (drake_est.diagnose.testbench_loop): residuals locked to the motion -------------
 
 def _loop_case(k):
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnose_testbench import loop_cases
+    loop_cases = bench_module("bench_diagnose_testbench").loop_cases
     from drake_est.diagnose.testbench_loop import generate as generate_loop
     s = loop_cases(100)[k]
     return generate_loop(s["effects"], seed=s["seed"], duration=s["duration"], sample_rate=s["sample_rate"],
@@ -167,10 +166,7 @@ def test_quantized_closed_loop_log_keeps_its_one_step_samples():
     91 % of the selected samples and one step off on the rest; the 6-MAD screen took all 247 of those for outliers,
     the inertia backfit went to J = 0.0007 (true 0.56) and a Stribeck law was named.  With the scale floored at the
     rounding noise nothing is screened and nothing is named."""
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnose_testbench import loop_cases
+    loop_cases = bench_module("bench_diagnose_testbench").loop_cases
 
     from drake_est.diagnose.testbench_loop import generate as generate_loop
     spec = loop_cases(747)[746]

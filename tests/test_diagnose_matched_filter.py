@@ -5,9 +5,6 @@ dynamics the axis model lacks (an elastic gear read by a motor-side encoder; loo
 "none"), while on a rigid axis it is smoothed noise."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 import scipy.signal
@@ -15,7 +12,7 @@ import scipy.signal
 from drake_est.diagnose import diagnose
 from drake_est.diagnose.unexplained import MIN_SHARE_MATCHED, acceleration_filter_kernel, matched_filter_test
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from conftest import bench_module
 
 
 @pytest.mark.parametrize("w,po,h", [(7, 3, 0.014), (11, 3, 0.01), (25, 3, 0.004), (101, 3, 0.001), (9, 2, 0.01)])
@@ -34,7 +31,7 @@ def test_kernel_turns_the_second_difference_into_the_savgol_acceleration(w, po, 
 
 
 def _spec(k, effects=None):
-    from bench_diagnose_testbench import loop_log
+    loop_log = bench_module("bench_diagnose_testbench").loop_log
     log, truth = loop_log(k, effects)
     rep = diagnose(log, robot="generic", seed=0, simulate=False)
     return rep, truth

@@ -4,20 +4,17 @@ error: on point-to-point moves the velocity of the accelerating samples follows 
 10-20 % off had been reported as structure over jerk on null closed-loop logs (loop specs 1734 and 2612)."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 import drake_est.diagnose.unexplained as U
 from drake_est.diagnose import diagnose
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from conftest import bench_module
 
 
 def _loop_spec(k):
-    from bench_diagnose_testbench import loop_log
+    loop_log = bench_module("bench_diagnose_testbench").loop_log
     log, truth = loop_log(k)
     return diagnose(log, robot="generic", seed=0, simulate=False).to_dict(), truth
 

@@ -8,6 +8,8 @@ import pytest
 
 from drake_est.diagnose.detectors import Extension, time_periodic_refit
 
+from conftest import bench_module
+
 
 class _JD:
     """The fields time_periodic_refit reads."""
@@ -86,10 +88,7 @@ def test_loop_case_471_disturbance_harmonic_is_not_named_a_ripple(ulps):
     Also with the reference moved by 1 and 5 ulps (testbench_loop.generate's reference_ulps: the last digits
     another CPU changes): with the fifteenth round's refit, which kept the harmonic orders it had, 3f (tested at
     p ~ 1e-6 on the dominated residual) stayed at 0, 1 and 5 ulps on an AVX2 machine (the last CI's), not at 2-4."""
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnose_testbench import loop_cases
+    loop_cases = bench_module("bench_diagnose_testbench").loop_cases
 
     from drake_est.diagnose import diagnose
     from drake_est.diagnose.testbench_loop import generate

@@ -5,18 +5,15 @@ with the held-out blocks makes a sinusoid at the alternation frequency fit the o
 that raised the held-out error by a half or more)."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 
 from drake_est.diagnose import diagnose
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from conftest import bench_module
 
 
 def _log(k):
-    from bench_diagnose_testbench import loop_log
+    loop_log = bench_module("bench_diagnose_testbench").loop_log
     return loop_log(k)
 
 

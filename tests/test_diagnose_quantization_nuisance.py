@@ -6,19 +6,16 @@ period one ADC step.  The jerk, snap and time-shift tests regress its first harm
 that guard, and so do these tests where the derivative window is longer than 0.1 s)."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 
 import drake_est.diagnose.unexplained as U
 from drake_est.diagnose import diagnose
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from conftest import bench_module
 
 
 def _loop_spec(k, report=False):
-    from bench_diagnose_testbench import loop_log
+    loop_log = bench_module("bench_diagnose_testbench").loop_log
     log, truth = loop_log(k)
     rep = diagnose(log, robot="generic", seed=0, simulate=False)
     return (rep.to_dict(), truth, rep) if report else (rep.to_dict(), truth)

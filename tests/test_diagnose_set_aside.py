@@ -8,6 +8,8 @@ from drake_est.diagnose import detectors as det
 from drake_est.diagnose.nominal import JointData, block_split, prepare
 from drake_est.diagnose.testbench import generate
 
+from conftest import bench_module
+
 
 def _round0(effects, seed):
     log, truth = generate(effects, seed=seed, duration=120.0, sample_rate=100.0, noise_std=0.05)
@@ -113,11 +115,7 @@ def test_closed_loop_load_standing_in_for_asymmetry_and_stribeck_is_set_aside():
     """Closed-loop generator, spec 121 of the benchmark (asymmetric Coulomb + Stribeck under point-to-point
     moves, never used while the rule was written): the greedy search named a position load first; the report
     now names the two planted effects and says what it set aside and why."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnose_testbench import loop_cases
+    loop_cases = bench_module("bench_diagnose_testbench").loop_cases
 
     from drake_est.diagnose import diagnose
     from drake_est.diagnose.testbench_loop import generate
@@ -179,11 +177,7 @@ def test_rival_that_does_not_separate_on_held_out_blocks_makes_the_finding_ambig
     well enough that the load no longer scores above the asymmetric level; the asymmetric level is named, and if a
     rival is reported beside it, it is the load it was not separated from.  Checked at reference_ulps 0 and 3: at 3
     the load is taken first and then set aside (the mechanism differs, the outcome does not)."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnose_testbench import loop_cases
+    loop_cases = bench_module("bench_diagnose_testbench").loop_cases
 
     from drake_est.diagnose import diagnose
     from drake_est.diagnose.testbench_loop import generate

@@ -5,15 +5,12 @@ closed-loop generator (loop spec 326), while structure away from the reversals s
 backlash under point-to-point moves, now reported)."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 
 from drake_est.diagnose import diagnose
 from drake_est.diagnose.unexplained import one_sign_samples
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from conftest import bench_module
 
 
 def _brute(v, v_min, g):
@@ -36,7 +33,7 @@ def test_one_sign_samples_matches_a_sliding_window():
 
 
 def _loop_spec(k):
-    from bench_diagnose_testbench import loop_log
+    loop_log = bench_module("bench_diagnose_testbench").loop_log
     log, truth = loop_log(k)
     return diagnose(log, robot="generic", seed=0, simulate=False).to_dict(), truth
 
@@ -64,7 +61,7 @@ def test_acceleration_corners_are_not_jerk_structure():
     """Testbench spec 84 (Stribeck, 50 Hz, speed levels joined by ramps): once the reversal samples were left
     out, the Savitzky-Golay error at the ramps' corners held 13 % of the left-out residual as jerk structure;
     the re-smoothing error S(a) - a is regressed out with the snap and the log ends with its finding only."""
-    from bench_diagnose_testbench import cases
+    cases = bench_module("bench_diagnose_testbench").cases
     from drake_est.diagnose.testbench import generate as generate_open_loop
     spec = cases(85)[84]
     log, truth = generate_open_loop(spec["effects"], seed=spec["seed"], duration=spec["duration"],
@@ -79,7 +76,7 @@ def test_null_log_starts_and_reversals_are_not_a_time_shift():
     """The seed of loop spec 85 without its backlash (a null log, p2p moves, 100 Hz, Student-t noise): with every
     moving sample in the time-shift test, the Coulomb sign error at starts and reversals reads as a shift holding
     more than the 3 % share; with the one-sign guard the log is clean."""
-    from bench_diagnose_testbench import loop_log
+    loop_log = bench_module("bench_diagnose_testbench").loop_log
     log, truth = loop_log(85, effects={})
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert d["findings"] == [] and d["unexplained"] == [], d["unexplained"]

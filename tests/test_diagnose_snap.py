@@ -4,16 +4,13 @@ error kappa x snap.  An elastic gear read by a motor-side encoder leaves about -
 the free snap nuisance of the jerk test had absorbed (loop spec 988: an elastic gear that ended as "none")."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import scipy.signal
 
 from drake_est.diagnose import diagnose
 from drake_est.diagnose.unexplained import filter_snap_gain
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from conftest import bench_module
 
 
 def test_filter_snap_gain_is_the_savgol_error_on_a_quartic():
@@ -33,7 +30,7 @@ def test_filter_snap_gain_is_the_savgol_error_on_a_quartic():
 
 
 def _loop_spec(k, effects=None):
-    from bench_diagnose_testbench import loop_log
+    loop_log = bench_module("bench_diagnose_testbench").loop_log
     log, truth = loop_log(k, effects)
     rep = diagnose(log, robot="generic", seed=0, simulate=False)
     return rep.to_dict(), truth, rep

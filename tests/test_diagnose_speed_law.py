@@ -13,6 +13,8 @@ from drake_est.diagnose import detectors as det
 from drake_est.diagnose.nominal import prepare
 from drake_est.identification.friction.extensions import columns_at, stribeck_columns
 
+from conftest import bench_module
+
 
 def _square_axis(levels_first, levels_second, law, change=None, n=24000, h=0.01, seed=0, noise=0.02, log=False):
     """A generic axis (J = 0.2) at constant speed levels, back and forth, smoothed ramps: ``levels_first`` during
@@ -209,11 +211,7 @@ def test_closed_loop_change_with_the_after_change_samples_kept_is_named():
     tested on its own above and in test_diagnose_set_aside.py).  A screen that flags more than
     nominal.OUTLIER_MAX_SHARE of the rows is no longer applied: with every sample kept the change is named outright,
     at the right time, well ahead of its runner-up."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnose_testbench import loop_log
+    loop_log = bench_module("bench_diagnose_testbench").loop_log
 
     from drake_est.diagnose import diagnose
     log, truth = loop_log(50)
@@ -308,10 +306,7 @@ def test_position_friction_that_a_speed_curve_explains_is_not_named_in_spec_165(
     (core.finding_not_confirmed); that structure was the jerk test's false alarm (the viscous coefficient's error,
     a nuisance column since the thirteenth round), and with a white final residual the position friction is
     reported only as ambiguous with the planted Stribeck law: what is named outright is planted."""
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnose_testbench import loop_log
+    loop_log = bench_module("bench_diagnose_testbench").loop_log
 
     from drake_est.diagnose import diagnose
     log, truth = loop_log(165)
@@ -378,10 +373,8 @@ def test_a_load_that_direction_levels_or_a_speed_curve_explain_is_not_named_alon
     reference moved by 4 ulps (another CPU's last digits): there the load is taken and later set aside for the
     asymmetric level (the mechanism differs, the outcome does not)."""
     import json
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnose_testbench import judge, loop_cases, loop_log
+    bench = bench_module("bench_diagnose_testbench")
+    judge, loop_cases, loop_log = bench.judge, bench.loop_cases, bench.loop_log
     from drake_est.diagnose import diagnose
 
     for k, ulps in ((2453, 0), (2453, 4), (2662, 0)):
