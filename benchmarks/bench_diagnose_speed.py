@@ -13,7 +13,11 @@ forward simulation, no report writing) on logs generated before the clock starts
 Wall time and process CPU time (``time.process_time``) are both written: on a machine shared with other
 jobs the CPU time is the meaningful number.  BLAS runs single-threaded inside ``diagnose``.
 
-Usage: python benchmarks/bench_diagnose_speed.py [--n 10] [--loop 10] [--json OUT.json]
+``--workers N`` also times each set of logs diagnosed by N worker processes at once (the issue's "ten logs on
+2 cores"): the workers are started and have imported drake_est before the clock starts, the logs are sent to
+them pickled, and their findings must equal the one-by-one run's.
+
+Usage: python benchmarks/bench_diagnose_speed.py [--n 10] [--loop 10] [--workers 2] [--json OUT.json]
        python benchmarks/bench_diagnose_speed.py --markdown benchmarks/results/diagnose_speed.json  (README table)
 """
 from __future__ import annotations
@@ -43,7 +47,40 @@ def readme_table(out, source="diagnose_speed.json") -> list:
             "| < 10 s |"] + ([
             f"| {out['n_loop_logs']} closed-loop logs (two effects each), 45,000 samples each | "
             f"{out['loop_total_wall_s']:.1f} s | {out['loop_total_cpu_s']:.1f} s | {out['loop_max_cpu_s']:.1f} s | "
-            "10 logs < 60 s, one < 10 s |"] if out.get("n_loop_logs") else [])
+            "10 logs < 60 s, one < 10 s |"] if out.get("n_loop_logs") else []) + [
+            f"| the same {n} {what} logs, {out['pool_workers']} worker processes at once | {out[key]:.1f} s | | | "
+            "10 logs < 60 s |"
+            for n, what, key in ((out.get("n_generic_logs"), "generic-axis", "generic_pool_wall_s"),
+                                 (out.get("n_loop_logs"), "closed-loop", "loop_pool_wall_s"))
+            if out.get("pool_workers") and n and out.get(key) is not None]
+
+
+def _diagnose_one(item):
+    """(name, findings) of one log diagnosed in a worker process."""
+    from drake_est.diagnose import diagnose
+    name, lg, robot = item
+    return name, diagnose(lg, robot=robot, seed=0, simulate=False).effects
+
+
+def _warm(_):
+    import drake_est.diagnose  # noqa: F401  (the import is what is warmed)
+    return os.getpid()
+
+
+def pool_wall_s(items, workers: int, expected: dict) -> float:
+    """Wall time [s] of diagnosing ``items`` ((name, log, robot) each) with ``workers`` processes at once, the
+    pool started and warmed before the clock; every log's findings must equal ``expected[name]``."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as ex:
+        list(ex.map(_warm, range(workers)))
+        w0 = time.perf_counter()
+        got = dict(ex.map(_diagnose_one, items))
+        wall = time.perf_counter() - w0
+    bad = sorted(k for k in expected if got.get(k) != expected[k])
+    if bad:
+        raise SystemExit(f"worker findings differ from the one-by-one run for: {', '.join(bad)}")
+    return wall
 
 
 def main(argv=None):
@@ -65,6 +102,8 @@ def main(argv=None):
     ap.add_argument("--n", type=int, default=10)
     ap.add_argument("--loop", type=int, default=10, help="closed-loop logs (0: none)")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--workers", type=int, default=0,
+                    help="also time each set with this many worker processes at once (0: not)")
     args = ap.parse_args(argv)
     logs = []
     for s in range(args.n):
@@ -98,6 +137,15 @@ def main(argv=None):
            "loop_total_wall_s": float(sum(r["wall_s"] for r in lp)), "loop_total_cpu_s": float(sum(r["cpu_s"] for r in lp)),
            "loop_max_cpu_s": float(max((r["cpu_s"] for r in lp), default=0.0)),
            "load_average_1min": os.getloadavg()[0], "cpu_count": os.cpu_count()}
+    if args.workers > 0:
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+        found = {r["log"]: r["findings"] for r in rows}
+        out["pool_workers"] = args.workers
+        out["generic_pool_wall_s"] = pool_wall_s(logs, args.workers, {n: found[n] for n, _, _ in logs})
+        out["loop_pool_wall_s"] = (pool_wall_s(loop, args.workers, {n: found[n] for n, _, _ in loop})
+                                   if loop else None)
+        print(f"with {args.workers} worker processes: {len(logs)} generic logs {out['generic_pool_wall_s']:.1f} s wall"
+              + (f", {len(loop)} closed-loop logs {out['loop_pool_wall_s']:.1f} s wall" if loop else ""))
     print(f"{len(gen)} generic logs of {N_SAMPLES} samples: total wall {out['generic_total_wall_s']:.1f} s, "
           f"CPU {out['generic_total_cpu_s']:.1f} s (slowest {out['generic_max_cpu_s']:.1f} s CPU); "
           f"IRB 140 log: wall {out['irb140_wall_s']:.1f} s, CPU {out['irb140_cpu_s']:.1f} s; "

@@ -584,7 +584,21 @@ def motion_lines_hz(jd, share: float = MOTION_LINE_SHARE, swing: float = MOTION_
     Every state-dependent misfit g(q, qd) of the model repeats with the motion, so a residual periodic at one of
     these frequencies cannot be told from such a misfit: it is no evidence of a disturbance from outside the axis.
     (A disturbance the servo does not fully reject moves the axis at its own frequency too, but only by a small
-    position swing: that line is not the motion's.)"""
+    position swing: that line is not the motion's.)  Kept in ``jd.motion_lines`` where ``jd`` has that cache (a
+    :class:`~drake_est.diagnose.nominal.JointData`), with the t, q, v objects they came from."""
+    cache = getattr(jd, "motion_lines", None)
+    key = (float(share), float(swing))
+    src = (jd.t, getattr(jd, "q", None), jd.v)
+    if cache is not None and key in cache and all(x is y for x, y in zip(cache[key][0], src)):
+        return cache[key][1].copy()
+    lines = _motion_lines_hz(jd, share, swing)
+    if cache is not None:
+        cache[key] = (src, lines.copy())
+    return lines
+
+
+def _motion_lines_hz(jd, share, swing) -> np.ndarray:
+    """The lines of :func:`motion_lines_hz`, computed."""
     v = np.asarray(jd.v, float)
     if v.size < 16:
         return np.array([])

@@ -75,10 +75,15 @@ class JointData:
     #: the ripple detector's periodogram plans (:func:`drake_est.spectral.detect.find_periodic_components`'s
     #: ``scan_plans``): reused while the rows are unchanged; not pickled (NUFFT plans)
     scan_plans: dict = field(default_factory=dict, repr=False, compare=False)
+    #: the motion's own spectral lines (:func:`drake_est.diagnose.detectors.motion_lines_hz`) by (share, swing),
+    #: with the t, q, v arrays they came from: those full-length arrays are not changed by any step of a diagnosis
+    #: (rows are dropped, the arrays stay), so the lines are computed once per joint, not once per round
+    motion_lines: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __getstate__(self):
         state = dict(self.__dict__)
         state["scan_plans"] = {}
+        state["motion_lines"] = {}
         return state
 
     def drop_rows(self, mask) -> None:
