@@ -365,6 +365,39 @@ def kept_rows_naming(effect: str, results_dir=None, sample_rate: float | None = 
     return out
 
 
+def results_row(results_dir=None) -> str:
+    """The README's "Results at a glance" row of this benchmark, read off the kept JSONs (every kept row with the
+    latest code that ran it, per family) and the latest closed-loop block JSON (its fresh block, run once):
+    tests/test_diagnose_testbench.py checks that docs/readme/_results.md holds exactly this line."""
+    import re
+    kept = kept_rows_naming("any", results_dir)
+    s = summarize([r for _, r in kept.values()])
+    fam = s["per_family"]
+    t, lp = fam["testbench"], fam["loop"]
+    synth = [x for f, x in fam.items() if f.startswith("synth/")]
+    sc, sl, sw = (sum(x[k] for x in synth) for k in ("correct", "logs", "wrong_names"))
+    last = max(k for f, _, k in kept if f == "loop")
+    blocks = sorted((int(re.search(r"heldout(\d+)", f.name).group(1)), f) for f in kept_jsons(results_dir)
+                    if re.fullmatch(r"diagnose_testbench_loop_heldout\d+\.json", f.name))
+    lo, lf = blocks[-1]
+    b = summarize(json.load(open(lf))["rows"])
+    return (f"| diagnosis on generators other than synth and on synth ({s['logs']:,} kept logs: open-loop testbench "
+            f"{t['logs']} — single effects, pairs, ⅓-size effects, Stribeck, time-periodic disturbances, "
+            f"backlash/delay, Gaussian/Student-t/quantized null logs, 10–1000 Hz; closed-loop axis, specs 0-{last} — "
+            f"PID loop, p2p/multisine, its own effect shapes, backlash/compliance/sensor delay; synth {sl}) | — | "
+            f"open-loop testbench **{t['wrong_names']} wrong names**, {t['correct']}/{t['logs']} correct, "
+            f"{t['oov_unexplained_right']}/{t['oov_logs']} out-of-vocabulary `unexplained`, "
+            f"{t['null_logs_clean']}/{t['null_logs']} null logs clean; closed loop, each log with the latest code "
+            f"that ran it: **{lp['wrong_names']} wrong names**, {lp['correct']:,}/{lp['logs']:,} correct, "
+            f"{lp['missed']} missed, {lp['oov_unexplained_right']}/{lp['oov_logs']} out-of-vocabulary `unexplained`, "
+            f"{lp['null_logs_clean']}/{lp['null_logs']} null logs clean; synth {sc}/{sl} correct, {sw} wrong names; "
+            f"latest fresh block ({lo}-{lo + 99}, run once): {b['correct']}/{b['logs']} correct, "
+            f"{b['wrong_names']} wrong names, {b['oov_unexplained_right']}/{b['oov_logs']} out-of-vocabulary "
+            f"`unexplained`, {b['null_logs_clean']}/{b['null_logs']} null logs clean. Zero wrong names does not "
+            f"reliably carry over to fresh specs: see the roadmap | `python benchmarks/bench_diagnose_testbench.py` "
+            f"(a fresh block: `--family loop --start N --n-loop 100`; this row: `--results-row`) |")
+
+
 def row_differences(kept: dict, rows) -> list:
     """The rows of a run again whose outcome (:data:`ROW_OUTCOME`; ``unexplained`` as a set) differs from the
     kept row of the same (family, robot, k): [{json, family, robot, k, field: [kept, new]...}]."""
@@ -527,7 +560,12 @@ def main(argv=None):
                          "preparation records COUNT for some joint (e.g. beyond_training_speeds); --only-out FILE "
                          "writes them as an --only file")
     ap.add_argument("--only-out", default=None, metavar="FILE", help="with --kept-with-count: the --only file")
+    ap.add_argument("--results-row", action="store_true",
+                    help="print the README's results row, read off the kept JSONs, and exit")
     a = ap.parse_args(argv)
+    if a.results_row:
+        print(results_row())
+        return None
     if a.kept_with_count:
         out = kept_logs_with_count(a.kept_with_count, a.lane, a.sample_rate)
         if a.only_out:

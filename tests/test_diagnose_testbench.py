@@ -391,3 +391,16 @@ def test_eighteenth_round_numbers_are_its_jsons():
     kept = bench_module("bench_diagnose_testbench").kept_rows_naming("any")
     k3899 = [row for (fam, _, k), (_, row) in kept.items() if fam != "loop" or k < 3900]
     assert f"of the {len(k3899):,} kept rows of specs 0-3899" in doc and not [x for x in k3899 if x.get("wrong")]
+
+
+def test_the_results_row_is_read_off_the_kept_jsons():
+    """The README's "Results at a glance" row of this benchmark is results_row() of the kept JSONs (not typed), and
+    the roadmap's "specs 0-N" is the same N."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    row = bench_module("bench_diagnose_testbench").results_row()
+    assert row in (root / "docs" / "readme" / "_results.md").read_text().splitlines()
+    n = re.search(r"closed-loop axis, specs 0-(\d+)", row).group(1)
+    assert f"generator's specs 0-{n} " in " ".join((root / "docs" / "readme" / "_roadmap.md").read_text().split())
