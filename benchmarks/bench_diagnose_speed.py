@@ -138,7 +138,6 @@ def main(argv=None):
            "loop_max_cpu_s": float(max((r["cpu_s"] for r in lp), default=0.0)),
            "load_average_1min": os.getloadavg()[0], "cpu_count": os.cpu_count()}
     if args.workers > 0:
-        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
         found = {r["log"]: r["findings"] for r in rows}
         out["pool_workers"] = args.workers
         out["generic_pool_wall_s"] = pool_wall_s(logs, args.workers, {n: found[n] for n, _, _ in logs})
