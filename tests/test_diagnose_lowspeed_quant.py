@@ -111,11 +111,7 @@ def test_quantization_bound_rejects_fitting_the_rounding_error():
 # --- the closed-loop generator (drake_est.diagnose.testbench_loop): residuals locked to the motion -------------
 
 def _loop_case(k):
-    loop_cases = bench_module("bench_diagnose_testbench").loop_cases
-    from drake_est.diagnose.testbench_loop import generate as generate_loop
-    s = loop_cases(100)[k]
-    return generate_loop(s["effects"], seed=s["seed"], duration=s["duration"], sample_rate=s["sample_rate"],
-                         noise=s["noise"], noise_std=s["noise_std"])
+    return bench_module("bench_diagnose_testbench").loop_log(k)
 
 
 def test_motion_lines_are_the_multisine_frequencies():
@@ -166,12 +162,7 @@ def test_quantized_closed_loop_log_keeps_its_one_step_samples():
     91 % of the selected samples and one step off on the rest; the 6-MAD screen took all 247 of those for outliers,
     the inertia backfit went to J = 0.0007 (true 0.56) and a Stribeck law was named.  With the scale floored at the
     rounding noise nothing is screened and nothing is named."""
-    loop_cases = bench_module("bench_diagnose_testbench").loop_cases
-
-    from drake_est.diagnose.testbench_loop import generate as generate_loop
-    spec = loop_cases(747)[746]
-    log, truth = generate_loop(spec["effects"], seed=spec["seed"], duration=spec["duration"],
-                               sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"])
+    log, truth = _loop_case(746)
     names, d = _names(diagnose(log, robot="generic", seed=0, simulate=False))
     assert names == set(), d["findings"]
     assert d["data"]["excluded"]["1"]["outliers"] == 0

@@ -88,14 +88,8 @@ def test_loop_case_471_disturbance_harmonic_is_not_named_a_ripple(ulps):
     Also with the reference moved by 1 and 5 ulps (testbench_loop.generate's reference_ulps: the last digits
     another CPU changes): with the fifteenth round's refit, which kept the harmonic orders it had, 3f (tested at
     p ~ 1e-6 on the dominated residual) stayed at 0, 1 and 5 ulps on an AVX2 machine (the last CI's), not at 2-4."""
-    loop_cases = bench_module("bench_diagnose_testbench").loop_cases
-
     from drake_est.diagnose import diagnose
-    from drake_est.diagnose.testbench_loop import generate
-    spec = loop_cases(472)[471]
-    log, truth = generate(spec["effects"], seed=spec["seed"], duration=spec["duration"],
-                          sample_rate=spec["sample_rate"], noise=spec["noise"], noise_std=spec["noise_std"],
-                          reference_ulps=ulps)
+    log, truth = bench_module("bench_diagnose_testbench").loop_log(471, reference_ulps=ulps)
     assert sorted(truth["effects"]) == ["position_dependent_friction", "time_periodic_disturbance"]
     rep = diagnose(log, robot="generic", seed=0, simulate=False)
     d = rep.to_dict()

@@ -115,13 +115,8 @@ def test_closed_loop_load_standing_in_for_asymmetry_and_stribeck_is_set_aside():
     """Closed-loop generator, spec 121 of the benchmark (asymmetric Coulomb + Stribeck under point-to-point
     moves, never used while the rule was written): the greedy search named a position load first; the report
     now names the two planted effects and says what it set aside and why."""
-    loop_cases = bench_module("bench_diagnose_testbench").loop_cases
-
     from drake_est.diagnose import diagnose
-    from drake_est.diagnose.testbench_loop import generate
-    s = loop_cases(122)[121]
-    log, _ = generate(s["effects"], seed=s["seed"], duration=s["duration"], sample_rate=s["sample_rate"],
-                      noise=s["noise"], noise_std=s["noise_std"])
+    log, _ = bench_module("bench_diagnose_testbench").loop_log(121)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert sorted(f["effect"] for f in d["findings"]) == ["asymmetric_coulomb", "stribeck"]
     assert [(r["effect"], r["joint"]) for r in d["set_aside"]] == [("position_dependent_load", 1)]
@@ -177,14 +172,10 @@ def test_rival_that_does_not_separate_on_held_out_blocks_makes_the_finding_ambig
     well enough that the load no longer scores above the asymmetric level; the asymmetric level is named, and if a
     rival is reported beside it, it is the load it was not separated from.  Checked at reference_ulps 0 and 3: at 3
     the load is taken first and then set aside (the mechanism differs, the outcome does not)."""
-    loop_cases = bench_module("bench_diagnose_testbench").loop_cases
-
     from drake_est.diagnose import diagnose
-    from drake_est.diagnose.testbench_loop import generate
-    s = loop_cases(144)[143]
+    loop_log = bench_module("bench_diagnose_testbench").loop_log
     for ulps in (0, 3):
-        _check_spec_143(generate(s["effects"], seed=s["seed"], duration=s["duration"], sample_rate=s["sample_rate"],
-                                 noise=s["noise"], noise_std=s["noise_std"], reference_ulps=ulps)[0], diagnose)
+        _check_spec_143(loop_log(143, reference_ulps=ulps)[0], diagnose)
 
 
 def _check_spec_143(log, diagnose):
