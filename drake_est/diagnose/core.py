@@ -428,6 +428,8 @@ class DiagnosisResult:
     timing: dict = field(default_factory=dict)
     sigma: dict = field(default_factory=dict)
     unexplained: list = field(default_factory=list)
+    #: what every test of the final residual read, reported or not (:func:`~drake_est.diagnose.unexplained.test_readings`)
+    structure_readings: list = field(default_factory=list)
 
 
 def _above_quantization(prep, fit0, fit1, ext) -> bool:
@@ -1170,7 +1172,8 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         _resolve_named_rivals(out[3], checked)
         fit, model = out[4], out[5]
         fit._model = model
-        unexplained = residual_structure(prep, fit)
+        readings = []
+        unexplained = residual_structure(prep, fit, tests_out=readings)
         weak = finding_not_confirmed(out[3], unexplained) if _confirm < MAX_NOT_CONFIRMED else None
         if weak is None:
             mark_not_separated_under_misfit(out[3], unexplained)
@@ -1189,4 +1192,4 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
     fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma = out
     timing = {"prepare_s": t_prep, "total_s": time.perf_counter() - t0, "alpha": alpha, "min_gain": min_gain}
     return DiagnosisResult(prep, fit0, nominal_val, nominal_joint, steps, fit, model, rejected, timing, sigma,
-                           unexplained)
+                           unexplained, readings)

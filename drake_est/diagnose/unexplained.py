@@ -650,8 +650,9 @@ def reversal_impulse(prep, fit, j, margin_s=REVERSAL_MARGIN_S):
             "profile_mean_residual": [float(x) for x in mean[okb] / cnt[okb]]}
 
 
-def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) -> list:
-    """Remaining structure of the final held-out residual (list of dicts; empty when none)."""
+def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE, tests_out=None) -> list:
+    """Remaining structure of the final held-out residual (list of dicts; empty when none).  ``tests_out``: a list
+    that receives what every test read, reported or not (:func:`test_readings`)."""
     from drake_est.diagnose.nominal import block_index
     out = []
     tests = []
@@ -689,6 +690,8 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
     steps = {j: joint_tau_step(prep, j) for j in prep.joints}
     short = {j: short_derivative_window(prep, jd) for j, jd in prep.joints.items()}
     var = {j: float(np.var((jd.y - fit.pred[j])[jd.val])) for j, jd in prep.joints.items()}
+    if tests_out is not None:
+        tests_out.extend(test_readings(tests, steps, short, var, n_tests))
     for j, name, r in tests:
         if name == "velocity_reversals":
             d = _reversal_entry(j, r, steps[j], alpha / n_tests, min_share)
@@ -741,6 +744,27 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) 
                 d["adc_step"] = float(steps[j])
             out.append(d)
     return sorted(out, key=lambda d: -d["share_of_residual_variance"])
+
+
+def test_readings(tests, steps, short, var, n_tests) -> list:
+    """What each test of :func:`residual_structure` read, reported or not: ``{"joint", "variable", "p_value",
+    "share", "structure_rms", "adc_step", "adc_guarded", "n_tests"}`` (the reversal test: p-value and share), for
+    measuring the tests' null tails (``benchmarks/bench_unexplained_shares.py``)."""
+    out = []
+    for j, name, r in tests:
+        if name == "velocity_reversals":
+            out.append({"joint": int(j), "variable": name, "p_value": float(r["p"]), "share": float(r["share"]),
+                        "n_tests": int(n_tests)})
+            continue
+        p, share = float(r[0]), float(r[1])
+        v_e = float(r[3]) if len(r) > 3 and np.ndim(r[3]) == 0 else var[j]
+        guarded = name not in QUANTIZATION_NUISANCE_TESTS or not short[j]
+        rms = float(np.sqrt(max(share, 0.0) * v_e))
+        out.append({"joint": int(j), "variable": name, "p_value": p, "share": share, "structure_rms": rms,
+                    "adc_step": float(steps[j]),
+                    "adc_guarded": bool(steps[j] > 0 and guarded and rms < steps[j] * ADC_GUARD_STEPS),
+                    "n_tests": int(n_tests)})
+    return out
 
 
 def _reversal_entry(j, r, step, alpha, min_share):
