@@ -133,15 +133,21 @@ def summary(rows, test=None, shares=()) -> dict:
     return out
 
 
-def print_summary(s) -> None:
-    print(f"{s['logs']} logs {s['kinds']}; with an entry of the share-thresholded tests: "
-          f"{s['logs_with_an_entry_of_these_tests']}")
-    print("| test | share needed | significant in null / out-of-vocabulary / vocabulary logs | largest share, null (log) |")
-    print("|---|---|---|---|")
+def table_lines(s) -> list:
+    """The per-test table of a summary (the docs quote it; tests/test_diagnose_structure_readings.py checks it)."""
+    out = ["| test | share needed | significant in null / out-of-vocabulary / vocabulary logs | largest share, null (log) |",
+           "|---|---|---|---|"]
     for name, t in sorted(s["null_tails"].items()):
         sg = t["significant"]
         mx = "—" if t["null_max_share"] is None else f"{t['null_max_share']:.4f} ({t['null_max_share_k']})"
-        print(f"| {name} | {need(name):g} | {sg['null']} / {sg['oov']} / {sg['vocab']} | {mx} |")
+        out.append(f"| {name} | {need(name):g} | {sg['null']} / {sg['oov']} / {sg['vocab']} | {mx} |")
+    return out
+
+
+def print_summary(s) -> None:
+    print(f"{s['logs']} logs {s['kinds']}; with an entry of the share-thresholded tests: "
+          f"{s['logs_with_an_entry_of_these_tests']}")
+    print("\n".join(table_lines(s)))
     for v in s.get("variants", []):
         g, lo = v["logs_gaining_an_entry"], v["logs_losing_every_entry"]
         print(f"{v['test']} at {v['share']:g}: logs gaining an entry: null {len(g['null'])} {g['null'][:8]}, "

@@ -42,3 +42,21 @@ def test_the_readings_of_a_reported_structure():
     u = next(u for u in rep.result.unexplained if u["variable"] == "time_shift_torque_vs_position")
     r = next(r for r in rep.result.structure_readings if r["variable"] == "time_shift_torque_vs_position")
     assert (r["p_value"], r["share"]) == (u["p_value"], u["share_of_residual_variance"])
+
+
+def test_the_docs_table_of_the_readings_is_the_kept_json():
+    """The twentieth round's table of what each test read on specs 3500-4499 is printed from its kept JSON."""
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    shares = bench_module("bench_unexplained_shares")
+    d = json.loads((root / "benchmarks/results/unexplained_shares_loop3500.json").read_text())
+    text = (root / "docs/readme/diagnose_testbench.md").read_text()
+    for line in shares.table_lines(d):
+        assert line in text, line
+    # the numbers the text quotes: the time-shift test's null tail, and the snap test's
+    tails = d["null_tails"]
+    assert tails["time_shift_torque_vs_position"]["null_max_share"] < 0.0035
+    assert tails["time_shift_torque_vs_position"]["significant"]["null"] == 7 and d["kinds"]["null"] == 135
+    assert 0.09 < tails["snap_excluded_samples"]["null_max_share"] < 0.095
