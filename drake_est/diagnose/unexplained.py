@@ -700,10 +700,7 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE, 
             continue
         p, share, where = r[:3]
         v_e = r[3] if len(r) > 3 else var[j]
-        # a quantized torque leaves a deterministic error of at most half a step that follows the torque level: the
-        # ANOVA tests do not report structure below ADC_GUARD_STEPS; the left-out-sample tests regress it out
-        guarded = name not in QUANTIZATION_NUISANCE_TESTS or not short[j]
-        if steps[j] > 0 and guarded and np.sqrt(share * v_e) < steps[j] * ADC_GUARD_STEPS:
+        if _adc_guarded(name, share, v_e, steps[j], short[j]):
             continue
         need = max(min_share, MIN_SHARE_EXCLUDED) if name.endswith("_excluded_samples") else min_share
         if name == "jerk_snap_matched_filter":
@@ -757,14 +754,20 @@ def test_readings(tests, steps, short, var, n_tests) -> list:
                         "n_tests": int(n_tests)})
             continue
         p, share = float(r[0]), float(r[1])
-        v_e = float(r[3]) if len(r) > 3 and np.ndim(r[3]) == 0 else var[j]
-        guarded = name not in QUANTIZATION_NUISANCE_TESTS or not short[j]
-        rms = float(np.sqrt(max(share, 0.0) * v_e))
-        out.append({"joint": int(j), "variable": name, "p_value": p, "share": share, "structure_rms": rms,
-                    "adc_step": float(steps[j]),
-                    "adc_guarded": bool(steps[j] > 0 and guarded and rms < steps[j] * ADC_GUARD_STEPS),
-                    "n_tests": int(n_tests)})
+        v_e = r[3] if len(r) > 3 else var[j]
+        out.append({"joint": int(j), "variable": name, "p_value": p, "share": share,
+                    "structure_rms": float(np.sqrt(share * v_e)), "adc_step": float(steps[j]),
+                    "adc_guarded": _adc_guarded(name, share, v_e, steps[j], short[j]), "n_tests": int(n_tests)})
     return out
+
+
+def _adc_guarded(name, share, v_e, step, short) -> bool:
+    """Whether the ADC guard holds a test's structure back: a quantized torque leaves a deterministic error of at
+    most half a step that follows the torque level, so the ANOVA tests do not report structure whose RMS is below
+    :data:`ADC_GUARD_STEPS`; the left-out-sample tests regress it out (no guard where the derivative window is
+    ``short``)."""
+    guarded = name not in QUANTIZATION_NUISANCE_TESTS or not short
+    return bool(step > 0 and guarded and np.sqrt(share * v_e) < step * ADC_GUARD_STEPS)
 
 
 def _reversal_entry(j, r, step, alpha, min_share):
