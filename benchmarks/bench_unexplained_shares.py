@@ -45,7 +45,7 @@ def collect(family: str, start: int, n: int, lane: str | None = None) -> list:
     from drake_est.errors import DataError
     from drake_est.progress import progress
     specs = {"loop": B.loop_cases, "testbench": B.cases}[family](start + n)
-    i, m = (0, 1) if lane is None else (int(lane.split("/")[0]), int(lane.split("/")[1]))
+    i, m = B._lane(lane)
     rows = []
     for k in progress(range(start + i, start + n, m), desc=f"{family} readings"):
         spec = specs[k]
@@ -65,15 +65,12 @@ def collect(family: str, start: int, n: int, lane: str | None = None) -> list:
 
 
 def need(variable: str, shares: dict | None = None) -> float:
-    """The share a test's structure must hold (the code's constants; ``shares`` overrides per test)."""
-    from drake_est.diagnose import unexplained as U
+    """The share a test's structure must hold (the code's, :func:`~drake_est.diagnose.unexplained.share_needed`;
+    ``shares`` overrides per test)."""
+    from drake_est.diagnose.unexplained import share_needed
     if shares and variable in shares:
         return shares[variable]
-    if variable.endswith("_excluded_samples"):
-        return max(U.MIN_SHARE, U.MIN_SHARE_EXCLUDED)
-    if variable == "jerk_snap_matched_filter":
-        return max(U.MIN_SHARE, U.MIN_SHARE_MATCHED)
-    return U.MIN_SHARE
+    return share_needed(variable)
 
 
 def entries(row, shares: dict | None = None) -> set:
@@ -174,8 +171,9 @@ def main(argv=None):
     out = {"rows": rows, **summary(rows, a.test, shares)}
     print_summary(out)
     if a.json:
-        from drake_est.jsonutil import dump_json
-        dump_json(out, a.json)
+        # thousands of rows of readings: compact strict JSON (dump_json indents, which doubles the size)
+        from drake_est.jsonutil import to_jsonable
+        Path(a.json).write_text(json.dumps(out, separators=(",", ":"), default=to_jsonable, allow_nan=False))
     return out
 
 

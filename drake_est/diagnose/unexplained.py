@@ -702,10 +702,7 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE, 
         v_e = r[3] if len(r) > 3 else var[j]
         if _adc_guarded(name, share, v_e, steps[j], short[j]):
             continue
-        need = max(min_share, MIN_SHARE_EXCLUDED) if name.endswith("_excluded_samples") else min_share
-        if name == "jerk_snap_matched_filter":
-            need = max(min_share, MIN_SHARE_MATCHED)
-        if p < alpha / n_tests and share >= need:
+        if p < alpha / n_tests and share >= share_needed(name, min_share):
             d = {"joint": int(j), "variable": name, "p_value": p, "share_of_residual_variance": float(share),
                  "samples": "accelerating samples left out by (9.9)" if name.endswith("_excluded_samples")
                  else "held-out samples",
@@ -759,6 +756,17 @@ def test_readings(tests, steps, short, var, n_tests) -> list:
                     "structure_rms": float(np.sqrt(share * v_e)), "adc_step": float(steps[j]),
                     "adc_guarded": _adc_guarded(name, share, v_e, steps[j], short[j]), "n_tests": int(n_tests)})
     return out
+
+
+def share_needed(name, min_share=MIN_SHARE) -> float:
+    """The share of the residual variance test ``name``'s structure must hold to be reported: ``min_share``,
+    :data:`MIN_SHARE_EXCLUDED` for the tests on the left-out accelerating samples, :data:`MIN_SHARE_MATCHED` for the
+    matched-filter test."""
+    if name.endswith("_excluded_samples"):
+        return max(min_share, MIN_SHARE_EXCLUDED)
+    if name == "jerk_snap_matched_filter":
+        return max(min_share, MIN_SHARE_MATCHED)
+    return min_share
 
 
 def _adc_guarded(name, share, v_e, step, short) -> bool:
