@@ -365,6 +365,11 @@ def kept_rows_naming(effect: str, results_dir=None, sample_rate: float | None = 
     return out
 
 
+def _wrong(n) -> str:
+    """"N wrong names" (singular for one)."""
+    return f"{n} wrong name" + ("" if n == 1 else "s")
+
+
 def results_row(results_dir=None) -> str:
     """The README's "Results at a glance" row of this benchmark, read off the kept JSONs (every kept row with the
     latest code that ran it, per family) and the latest closed-loop block JSON (its fresh block, run once):
@@ -385,14 +390,14 @@ def results_row(results_dir=None) -> str:
             f"{t['logs']} — single effects, pairs, ⅓-size effects, Stribeck, time-periodic disturbances, "
             f"backlash/delay, Gaussian/Student-t/quantized null logs, 10–1000 Hz; closed-loop axis, specs 0-{last} — "
             f"PID loop, p2p/multisine, its own effect shapes, backlash/compliance/sensor delay; synth {sl}) | — | "
-            f"open-loop testbench **{t['wrong_names']} wrong names**, {t['correct']}/{t['logs']} correct, "
+            f"open-loop testbench **{_wrong(t['wrong_names'])}**, {t['correct']}/{t['logs']} correct, "
             f"{t['oov_unexplained_right']}/{t['oov_logs']} out-of-vocabulary `unexplained`, "
             f"{t['null_logs_clean']}/{t['null_logs']} null logs clean; closed loop, each log with the latest code "
-            f"that ran it: **{lp['wrong_names']} wrong names**, {lp['correct']:,}/{lp['logs']:,} correct, "
+            f"that ran it: **{_wrong(lp['wrong_names'])}**, {lp['correct']:,}/{lp['logs']:,} correct, "
             f"{lp['missed']} missed, {lp['oov_unexplained_right']}/{lp['oov_logs']} out-of-vocabulary `unexplained`, "
-            f"{lp['null_logs_clean']}/{lp['null_logs']} null logs clean; synth {sc}/{sl} correct, {sw} wrong names; "
+            f"{lp['null_logs_clean']}/{lp['null_logs']} null logs clean; synth {sc}/{sl} correct, {_wrong(sw)}; "
             f"latest fresh block ({lo}-{lo + 99}, run once): {b['correct']}/{b['logs']} correct, "
-            f"{b['wrong_names']} wrong names, {b['oov_unexplained_right']}/{b['oov_logs']} out-of-vocabulary "
+            f"{_wrong(b['wrong_names'])}, {b['oov_unexplained_right']}/{b['oov_logs']} out-of-vocabulary "
             f"`unexplained`, {b['null_logs_clean']}/{b['null_logs']} null logs clean. Zero wrong names does not "
             f"reliably carry over to fresh specs: see the roadmap | `python benchmarks/bench_diagnose_testbench.py` "
             f"(a fresh block: `--family loop --start N --n-loop 100`; this row: `--results-row`) |")
