@@ -342,17 +342,13 @@ def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None) -> dict:
 PAIRED_GROUPS = 20
 
 
-def paired_block_test(prep, fit_a, fit_b, joints) -> dict:
-    """Does ``fit_b`` predict the held-out data of ``joints`` better than ``fit_a`` beyond chance?  Two
-    non-nested models (e.g. the same findings with one of two rival extensions) are compared by their squared
-    errors paired over the held-out time blocks: per group of contiguous validation blocks (at most
-    :data:`PAIRED_GROUPS` per joint, each joint's errors scaled by ``fit_a``'s held-out variance) the difference
-    ``sum e_a^2 - sum e_b^2``; a one-sided Wilcoxon signed-rank test of these differences over the groups.  The
-    groups, not the samples, are the independent units: a closed-loop residual is correlated within a move.
-    Returns ``{"statistic", "p_value", "groups", "groups_better"}`` (p = 1 when fewer than 3 groups)."""
+def _group_diffs(prep, fit_a, fit_b, joints) -> list:
+    """Per joint of ``joints``: (joint, group of each held-out sample, per-group ``sum e_a^2 - sum e_b^2`` scaled by
+    ``fit_a``'s held-out variance) over at most :data:`PAIRED_GROUPS` groups of contiguous validation blocks (the
+    units of :func:`paired_block_test` and :func:`gain_concentration`)."""
     from drake_est.diagnose.nominal import block_index
 
-    diffs = []
+    out = []
     for j in joints:
         jd = prep.joints[j]
         val = jd.val
@@ -363,7 +359,19 @@ def paired_block_test(prep, fit_a, fit_b, joints) -> dict:
         ub, inv = np.unique(blk, return_inverse=True)
         group = (inv * min(PAIRED_GROUPS, ub.size)) // ub.size
         d = (ea ** 2 - eb ** 2) / s2
-        diffs.append(np.bincount(group, weights=d))
+        out.append((j, group, np.bincount(group, weights=d)))
+    return out
+
+
+def paired_block_test(prep, fit_a, fit_b, joints) -> dict:
+    """Does ``fit_b`` predict the held-out data of ``joints`` better than ``fit_a`` beyond chance?  Two
+    non-nested models (e.g. the same findings with one of two rival extensions) are compared by their squared
+    errors paired over the held-out time blocks: per group of contiguous validation blocks (at most
+    :data:`PAIRED_GROUPS` per joint, each joint's errors scaled by ``fit_a``'s held-out variance) the difference
+    ``sum e_a^2 - sum e_b^2``; a one-sided Wilcoxon signed-rank test of these differences over the groups.  The
+    groups, not the samples, are the independent units: a closed-loop residual is correlated within a move.
+    Returns ``{"statistic", "p_value", "groups", "groups_better"}`` (p = 1 when fewer than 3 groups)."""
+    diffs = [g for _, _, g in _group_diffs(prep, fit_a, fit_b, joints)]
     d = np.concatenate(diffs) if diffs else np.zeros(0)
     if d.size < 3 or not np.any(d):
         return {"statistic": 0.0, "p_value": 1.0, "groups": int(d.size), "groups_better": 0}
@@ -372,3 +380,74 @@ def paired_block_test(prep, fit_a, fit_b, joints) -> dict:
     res = scipy.stats.wilcoxon(d, alternative="greater")
     return {"statistic": float(res.statistic), "p_value": float(res.pvalue), "groups": int(d.size),
             "groups_better": int(np.sum(d > 0))}
+
+
+#: a candidate's held-out gain is concentrated when at most this fraction of the paired groups holds ...
+GAIN_FEW_GROUPS = 0.25
+#: ... this share of its summed gain (the groups where it predicts better, :func:`gain_concentration`)
+GAIN_SHARE = 0.8
+
+
+def groups_needed(n_groups: int, alpha: float = 0.05) -> int | None:
+    """The fewest of ``n_groups`` paired groups that must show a gain for :func:`paired_block_test` to reach
+    ``alpha`` when those gains are the largest differences and every other group loses a little (the best case
+    of a gain confined to some groups): the one-sided Wilcoxon signed-rank p of m top ranks.  None when even all
+    groups would not do."""
+    for m in range(1, n_groups + 1):
+        d = np.concatenate([-np.arange(1.0, n_groups - m + 1), np.arange(n_groups - m + 1.0, n_groups + 1.0)])
+        if float(scipy.stats.wilcoxon(d, alternative="greater").pvalue) < alpha:
+            return m
+    return None
+
+
+def _conditions(jd, mask) -> dict:
+    """Direction, speed and position of joint ``jd``'s held-out samples in ``mask``."""
+    v = jd.v[jd.rows][jd.val][mask]
+    q = jd.q[jd.rows][jd.val][mask]
+    if v.size == 0:
+        return {}
+    return {"samples": int(v.size), "positive_direction_share": float(np.mean(v > 0)),
+            "median_speed": float(np.median(np.abs(v))),
+            "position_range": [float(np.quantile(q, 0.05)), float(np.quantile(q, 0.95))]}
+
+
+def gain_concentration(prep, fit_a, fit_b, joints, alpha: float = 0.05) -> dict | None:
+    """Where ``fit_b``'s held-out gain over ``fit_a`` lies when it sits in a few of the paired groups
+    (:func:`paired_block_test`): at most :data:`GAIN_FEW_GROUPS` of the groups hold :data:`GAIN_SHARE` of the summed
+    gain, and the gain over all groups is positive.  Such a candidate predicts the stretches where the log excites it
+    much better and the rest no better, and the paired test cannot confirm it from so few units: the log does not
+    repeat what would decide.  Returns the groups, the time stretches [s] that hold the gain, the direction, speed
+    and position of each joint there and elsewhere, and the number of groups the gain must reach
+    (:func:`groups_needed`); None when the gain is not concentrated."""
+    parts = _group_diffs(prep, fit_a, fit_b, joints)
+    units = [(j, g, float(x)) for j, _, gg in parts for g, x in enumerate(gg)]
+    if len(units) < 3:
+        return None
+    d = np.array([u[2] for u in units])
+    pos = np.sort(d[d > 0])[::-1]
+    if d.sum() <= 0 or pos.size == 0:
+        return None
+    k = int(np.searchsorted(np.cumsum(pos), GAIN_SHARE * pos.sum()) + 1)
+    if k > GAIN_FEW_GROUPS * len(units):
+        return None
+    top = sorted(np.argsort(-d, kind="stable")[:k])
+    stretches, cond = [], {}
+    for j, group, _ in parts:
+        jd = prep.joints[j]
+        gains = sorted(units[i][1] for i in top if units[i][0] == j)
+        if not gains:
+            continue
+        t = jd.t[jd.rows][jd.val]
+        run = [gains[0]]
+        for g in gains[1:] + [None]:
+            if g is not None and g == run[-1] + 1:
+                run.append(g)
+                continue
+            m = (group >= run[0]) & (group <= run[-1])
+            stretches.append({"joint": int(j), "t_s": [float(t[m].min()), float(t[m].max())]})
+            if g is not None:
+                run = [g]
+        inside = np.isin(group, gains)
+        cond[str(j)] = {"in_gain_groups": _conditions(jd, inside), "elsewhere": _conditions(jd, ~inside)}
+    return {"groups": len(units), "groups_holding_gain": k, "share_of_gain": float(d[top].clip(min=0).sum() / pos.sum()),
+            "stretches": stretches, "conditions": cond, "groups_needed": groups_needed(len(units), alpha)}

@@ -867,6 +867,11 @@ def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, chang
             if paired["p_value"] >= PAIRED_ALPHA:
                 tst["significant"] = False
                 tst["not_separated_on_held_out_blocks"] = True
+                # where its gain lies when a few stretches hold it (the log does not repeat what would confirm
+                # it: next_experiment says what would); reported, never used to decide
+                where = comp.gain_concentration(prep, fit, f1, list(ext.cols), PAIRED_ALPHA)
+                if where is not None:
+                    tst["gain_concentration"] = where
         results.append((ext, tst, f1, m1))
     return results
 

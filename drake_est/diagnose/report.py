@@ -214,7 +214,7 @@ class DiagnosisReport:
         from drake_est.diagnose.unexplained import next_experiments
         out = {"data": data, "nominal": nominal, "findings": findings, "final": final,
                "unexplained": res.unexplained,
-               "next_experiment": next_experiments(prep, res.steps, float(log.duration)),
+               "next_experiment": next_experiments(prep, res.steps, float(log.duration), res.rejected),
                "not_found": sorted([{k: v for k, v in r.items()} for r in res.rejected],
                                    key=lambda r: -r["score"])[:8],
                "logs": per_log_table(prep, res),

@@ -800,8 +800,10 @@ def _reversal_entry(j, r, step, alpha, min_share):
             "profile_time_s": r["profile_time_s"], "profile_mean_residual": r["profile_mean_residual"]}
 
 
-def next_experiments(prep, steps, duration) -> list:
-    """Experiments that would decide what this log cannot: ambiguous findings and untestable candidates."""
+def next_experiments(prep, steps, duration, rejected=()) -> list:
+    """Experiments that would decide what this log cannot: ambiguous findings, untestable candidates, and
+    candidates of the last round (``rejected``) whose held-out gain sits in a few stretches of the log
+    (:func:`~drake_est.diagnose.competition.gain_concentration`)."""
     from drake_est.diagnose.competition import ONE_SPEED_RATIO, ambiguous_rivals, speed_level_ratio
     from drake_est.diagnose.detectors import stribeck_speeds
     out = []
@@ -892,8 +894,92 @@ def next_experiments(prep, steps, duration) -> list:
                         "joint": int(j), "speeds": [float(0.4 * np.median(v)), float(2.0 * np.median(v))],
                         "experiment": f"sweeps of joint {j} at {0.4 * np.median(v):.3g} and "
                                       f"{2.0 * np.median(v):.3g} per s over the same positions"})
+    out += _repeat_experiments([r for r in rejected if r.get("gain_concentration")], duration)
     if duration < THERMAL_MIN_DURATION_S:
         out.append({"reason": f"log too short ({duration:.0f} s) for an hour-long thermal drift",
                     "duration_s": THERMAL_MIN_DURATION_S,
                     "experiment": f"{THERMAL_MIN_DURATION_S / 60:.0f} min of continuous motion from a cold start"})
     return out
+
+
+#: a held-out direction share, median speed or position range of the stretches that hold a candidate's gain is
+#: named in its experiment when it differs from the rest of the log by this much (direction share), this factor
+#: (speed) or overlaps the rest's range by less than this share (position) (:func:`_repeat_experiment`)
+CONDITION_DIRECTION_DIFF = 0.3
+CONDITION_SPEED_FACTOR = 2.0
+CONDITION_POSITION_OVERLAP = 0.5
+
+
+def _distinct_conditions(j, c) -> list:
+    """What joint ``j`` does in the stretches holding a gain that it does not do elsewhere (a
+    :func:`~drake_est.diagnose.competition.gain_concentration` conditions entry), as phrases."""
+    a, b = c.get("in_gain_groups") or {}, c.get("elsewhere") or {}
+    if not a:
+        return []
+    out = []
+    if b:
+        dd = a["positive_direction_share"] - b["positive_direction_share"]
+        if abs(dd) >= CONDITION_DIRECTION_DIFF:
+            out.append(f"joint {j} moving in the {'positive' if dd > 0 else 'negative'} direction "
+                       f"({100 * max(a['positive_direction_share'], 1 - a['positive_direction_share']):.0f} % of "
+                       f"those samples, {100 * max(b['positive_direction_share'], 1 - b['positive_direction_share']):.0f}"
+                       f" % {'positive' if dd < 0 else 'negative'} elsewhere)")
+        ra = a["median_speed"] / max(b["median_speed"], 1e-300)
+        if ra >= CONDITION_SPEED_FACTOR or ra <= 1.0 / CONDITION_SPEED_FACTOR:
+            out.append(f"joint {j} {'faster' if ra > 1 else 'slower'} than elsewhere (median {a['median_speed']:.3g} "
+                       f"against {b['median_speed']:.3g} per s)")
+        (qa, qb), (ra_, rb_) = a["position_range"], b["position_range"]
+        overlap = max(0.0, min(qb, rb_) - max(qa, ra_)) / max(qb - qa, 1e-300)
+        if overlap < CONDITION_POSITION_OVERLAP:
+            out.append(f"joint {j} at {qa:.3g} to {qb:.3g} (elsewhere {ra_:.3g} to {rb_:.3g})")
+    return out
+
+
+def _overlaps(a, b) -> bool:
+    """Whether two lists of stretches ({"joint", "t_s"}) share a joint and some time."""
+    return any(x["joint"] == y["joint"] and min(x["t_s"][1], y["t_s"][1]) >= max(x["t_s"][0], y["t_s"][0])
+               for x in a for y in b)
+
+
+def _repeat_experiments(rejected, duration) -> list:
+    """One next-experiment entry per group of last-round candidates whose held-out gains sit in the same few
+    stretches (the largest gain describes them, :func:`_repeat_experiment`; the others are listed with theirs)."""
+    out = []
+    for r in sorted(rejected, key=lambda r: -float(r.get("rmse_reduction") or 0.0)):
+        st = r["gain_concentration"]["stretches"]
+        host = next((e for e in out if _overlaps(e["stretches"], st)), None)
+        if host is None:
+            out.append(_repeat_experiment(r, duration))
+        else:
+            host.setdefault("also", []).append({"effect": r["effect"], "joint": r.get("joint"),
+                                                "rmse_reduction": r.get("rmse_reduction"),
+                                                "paired_p_value": r.get("paired_p_value"), "stretches": st})
+    for e in out:
+        if e.get("also"):
+            e["reason"] += "; the gains of " + ", ".join(
+                f"{a['effect']} ({100 * float(a['rmse_reduction'] or 0.0):.0f} %)" for a in e["also"]) + " sit there too"
+            e["experiment"] += " (and " + ", ".join(a["effect"] for a in e["also"]) + ")"
+    return out
+
+
+def _repeat_experiment(r, duration) -> dict:
+    """The next-experiment entry of a last-round candidate whose held-out gain sits in a few stretches: repeat what
+    the log does there often enough for the paired block test to confirm or refute it."""
+    g = r["gain_concentration"]
+    eff, j = r["effect"], r.get("joint")
+    spans = ", ".join(f"{s['t_s'][0]:.0f}-{s['t_s'][1]:.0f} s" for s in g["stretches"])
+    what = [p for jj, c in g["conditions"].items() for p in _distinct_conditions(jj, c)]
+    m, n = g["groups_needed"], g["groups"]
+    reason = (f"{eff} (joint {j}) lowers the held-out RMSE by {100 * r.get('rmse_reduction', 0.0):.0f} %, but "
+              f"{100 * g['share_of_gain']:.0f} % of that gain sits in {g['groups_holding_gain']} of the {n} held-out "
+              f"groups (t = {spans}): the held-out blocks do not confirm it (paired p = "
+              f"{r.get('paired_p_value', float('nan')):.2g})")
+    how = ("what the log does there (" + "; ".join(what) + ")") if what else "the motion of those stretches"
+    if m is None:
+        exp = f"a longer log that repeats {how} throughout"
+    else:
+        exp = (f"repeat {how} at least {m} times, spread evenly over a log as long as this one (about every "
+               f"{duration / m:.3g} s), so that {m} of its {n} held-out groups hold it and the paired block test can "
+               f"confirm or refute {eff}")
+    return {"reason": reason, "joint": j, "effect": eff, "stretches": g["stretches"], "conditions": g["conditions"],
+            "repeats_needed": m, "experiment": exp}
