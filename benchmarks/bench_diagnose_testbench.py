@@ -385,6 +385,9 @@ def results_row(results_dir=None) -> str:
     blocks = sorted((int(re.search(r"heldout(\d+)", f.name).group(1)), f) for f in kept_jsons(results_dir)
                     if re.fullmatch(r"diagnose_testbench_loop_heldout\d+\.json", f.name))
     lo, lf = blocks[-1]
+    # the latest block as first run (run once): its *_roundN_first.json copy where a later change replaced rows
+    first = sorted(lf.parent.glob(f"diagnose_testbench_loop_heldout{lo}_round*_first.json"))
+    lf = first[0] if first else lf
     b = summarize(json.load(open(lf))["rows"])
     return (f"| diagnosis on generators other than synth and on synth ({s['logs']:,} kept logs: open-loop testbench "
             f"{t['logs']} — single effects, pairs, ⅓-size effects, Stribeck, time-periodic disturbances, "

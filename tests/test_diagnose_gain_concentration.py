@@ -9,6 +9,8 @@ from drake_est.diagnose import competition as comp
 from drake_est.diagnose.nominal import block_split
 from drake_est.diagnose.unexplained import next_experiments
 
+from conftest import bench_module
+
 
 def _axis(gain_groups, rng, n=12000, duration=120.0):
     """A fake joint whose fit_b removes a large error where the joint moves in the positive direction (the held-out
@@ -113,3 +115,21 @@ def test_a_closed_loop_level_seen_in_one_excursion_gets_the_experiment():
     e = next(e for e in rep if "asymmetric_coulomb" in {e["effect"]} | {a["effect"] for a in e.get("also", [])})
     assert all(10 <= s["t_s"][0] and s["t_s"][1] <= 50 for s in e["stretches"])
     assert "positive direction" in e["experiment"] and e["repeats_needed"] >= 5
+
+
+def test_the_docs_table_of_repeat_entries_is_its_json():
+    """The twenty-first round's count of repeat-the-stretches entries on closed-loop specs 4300-4599 is printed from
+    its kept JSON (benchmarks/bench_next_experiment.py), and its counts agree with its rows."""
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    mod = bench_module("bench_next_experiment")
+    s = json.loads((root / "benchmarks" / "results" / "next_experiment_repeats_loop4300.json").read_text())
+    assert s["logs"] == 300 == len(s["rows"])
+    again = mod.summary(s["rows"])
+    assert {k: again[k] for k in again} == {k: s[k] for k in again}
+    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    for line in mod.table_lines(s, "closed-loop specs 4300-4599 (`next_experiment_repeats_loop4300.json`)"):
+        assert line in doc
+    assert s["misses_the_entry_points_at"] == [4411] and s["logs_with_a_repeat_entry"]["null"] == []

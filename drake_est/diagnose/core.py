@@ -757,6 +757,37 @@ def backfit_periodic(prep, model, fit, sigma):
                     lambda model, e, jd, r_p: det.time_periodic_refit(jd, r_p, e))
 
 
+#: how many times one search runs a round again after the Stribeck backfit reshaped the law (:func:`_search`)
+STRIBECK_REDOS = 1
+
+
+def backfit_stribeck(prep, model, fit, sigma):
+    """Backfitting of an accepted Stribeck law (:func:`_backfit`): its shape (vs and delta, or the basis in |qd|) was
+    chosen on the inner split of the model at the time it was accepted, where an effect not yet in the model that
+    goes with speed (an asymmetric Coulomb level where the two directions move at different speeds, say) bends
+    the curve it sees; the misfit the wrong shape leaves is speed-shaped and later candidates are named for it.
+    Once later findings are in the model the shape is chosen again (:func:`~drake_est.diagnose.detectors.stribeck`)
+    against the model without it, and replaced when that lowers the training residual.  Returns
+    ``(model, fit, moved)``; the new extension's evidence holds ``backfitted_from``."""
+    def redetect(model, e, jd, r_p):
+        j = e.joint
+        m0 = Model(prep, [x for x in model.exts if x is not e])
+        X = m0.design(j)
+        shared = m0.shared_exts()
+        if shared:
+            X = np.hstack([X] + [x.cols[j] for x in shared])
+        block = block_index(jd.t, jd.rows)
+        inner = InnerFits(X, jd.y, jd.train & (block % 4 == 0), jd.train & (block % 4 == 2), m0.nonneg(j))
+        new = det.stribeck(jd, r_p, lambda C, nonneg=False: inner.error(C, nonneg)[0],
+                           falling=j in m0.fit(sigma).kv_held)
+        if new is None or new.spec == e.spec:
+            return None
+        new.evidence["backfitted_from"] = {k: v for k, v in e.spec.items() if k != "effect"}
+        return new
+
+    return _backfit(prep, model, fit, sigma, "stribeck", redetect)
+
+
 def backfit_inertia(prep, model, fit) -> dict:
     """Backfitting of the inertia J of generic axes (the abrupt-change backfit's counterpart for the nominal
     model).  ``prepare`` identifies J before any finding is known, on the moving samples with the nominal
@@ -1054,7 +1085,9 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
     rejected = []
     fit = fit0
     cache, changed = {}, None
-    for _ in range(max_findings):
+    redone = 0
+    while len(steps) < max_findings:
+        accepted_before = set(accepted)
         results = _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache, changed)
         sig = [r for r in results if r[1]["significant"]]
         best, explained_away = _best_surviving(prep, model, fit, sig, alpha, min_gain)
@@ -1075,8 +1108,9 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
         fit = f1
         accepted.add((ext.effect, None if ext.shared else ext.joint))
         changed = set(prep.joints) if (ext.shared or model.shared_exts()) else set(ext.cols)
-        periodic_moved = []
-        for effect, backfit in (("abrupt_change", backfit_changes), ("time_periodic_disturbance", backfit_periodic)):
+        reshaped = []
+        for effect, backfit in (("abrupt_change", backfit_changes), ("stribeck", backfit_stribeck),
+                                ("time_periodic_disturbance", backfit_periodic)):
             if ext.effect == effect or not any(e.effect == effect for e in model.exts):
                 continue
             model, fit, moved = backfit(prep, model, fit, sigma)
@@ -1085,16 +1119,30 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
                     if st.ext is old_ext:
                         st.ext = new_ext
                 changed |= {j}
-            if effect == "time_periodic_disturbance":
-                periodic_moved = moved
+            if effect != "abrupt_change":
+                # a new shape or frequency may have other columns than the old: refit the steps (below)
+                reshaped += moved
+        if redone < STRIBECK_REDOS and any(old.effect == "stribeck" for _, old, _ in reshaped):
+            # the round chose this finding against a Stribeck shape that the finding itself has now changed (the
+            # shape bent by what it explains): run the round again on the reshaped model, whose competition is the
+            # one the report gives
+            redone += 1
+            model = Model(prep, [x for x in model.exts if x is not ext])
+            fit = model.fit(sigma)
+            accepted = accepted_before
+            changed = set(prep.joints)
+            first = min(k for k, st in enumerate(steps) if any(st.ext is m[2] for m in reshaped))
+            for k in range(first, len(steps)):
+                steps[k].fit = Model(prep, [s.ext for s in steps[:k + 1]]).fit(sigma)
+            continue
         js = list(ext.cols)
         steps.append(Step(ext, tst, f1, _val_metrics(prep, f1, js), {j: _val_metrics(prep, f1, [j]) for j in js},
                           competition))
-        if periodic_moved:
+        if reshaped:
             # parameters are reported from the fit of each step (report.effect_parameters): the steps from the
             # refitted disturbance on are refitted with its new columns (their tests and validation stay those
             # of their round)
-            first = min(k for k, st in enumerate(steps) if any(st.ext is m[2] for m in periodic_moved))
+            first = min(k for k, st in enumerate(steps) if any(st.ext is m[2] for m in reshaped))
             for k in range(first, len(steps)):
                 steps[k].fit = Model(prep, [s.ext for s in steps[:k + 1]]).fit(sigma)
     return fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma
