@@ -1071,9 +1071,22 @@ def mark_not_separated_under_misfit(steps, unexplained, min_gain_not_white=MIN_G
     return marked
 
 
+def _refit_steps(prep, steps, reshaped, sigma) -> None:
+    """Parameters are reported from the fit of each step (report.effect_parameters): the steps from the first one
+    whose extension a backfit reshaped (``reshaped``: (joint, old, new extension), a new Stribeck shape or
+    disturbance frequency, possibly with other columns) on are refitted with the new columns (their tests and
+    validation stay those of their round)."""
+    if not reshaped:
+        return
+    first = min(k for k, st in enumerate(steps) if any(st.ext is m[2] for m in reshaped))
+    for k in range(first, len(steps)):
+        steps[k].fit = Model(prep, [s.ext for s in steps[:k + 1]]).fit(sigma)
+
+
 def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
     """Forward search: from the nominal model, add the best significant candidate of each round (competitions,
-    change backfit) until none is left.  ``blocked``: (effect, joint) pairs closed from the start (findings set
+    backfits of change times, Stribeck shapes and disturbance frequencies; the round run again once after the first
+    Stribeck reshape, :data:`STRIBECK_REDOS`) until none is left.  ``blocked``: (effect, joint) pairs closed from the start (findings set
     aside by :func:`finding_to_set_aside`)."""
     model = Model(prep)
     fit0 = model.fit()
@@ -1131,20 +1144,12 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
             fit = model.fit(sigma)
             accepted = accepted_before
             changed = set(prep.joints)
-            first = min(k for k, st in enumerate(steps) if any(st.ext is m[2] for m in reshaped))
-            for k in range(first, len(steps)):
-                steps[k].fit = Model(prep, [s.ext for s in steps[:k + 1]]).fit(sigma)
+            _refit_steps(prep, steps, reshaped, sigma)
             continue
         js = list(ext.cols)
         steps.append(Step(ext, tst, f1, _val_metrics(prep, f1, js), {j: _val_metrics(prep, f1, [j]) for j in js},
                           competition))
-        if reshaped:
-            # parameters are reported from the fit of each step (report.effect_parameters): the steps from the
-            # refitted disturbance on are refitted with its new columns (their tests and validation stay those
-            # of their round)
-            first = min(k for k, st in enumerate(steps) if any(st.ext is m[2] for m in reshaped))
-            for k in range(first, len(steps)):
-                steps[k].fit = Model(prep, [s.ext for s in steps[:k + 1]]).fit(sigma)
+        _refit_steps(prep, steps, reshaped, sigma)
     return fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma
 
 
