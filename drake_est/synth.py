@@ -201,7 +201,7 @@ def _sample_truth(rng, meta, effects, moving, duration, ctrl_joints):
 
 def synthesize(effect="none", seed: int = 0, joints=None, duration: float | None = None,
                sample_rate: float = 100.0, experiment: str | None = None, noise_std: float | None = None,
-               encoder_counts_per_motor_rev: int = 4096, progress: bool = False):
+               encoder_counts_per_motor_rev: int = 4096, progress: bool = False, knot_offset: float = 0.0):
     """Simulate a "measured" IRB 140 log with hidden effects.
 
     Parameters
@@ -215,6 +215,12 @@ def synthesize(effect="none", seed: int = 0, joints=None, duration: float | None
     experiment : "sweep" (Sec. 9.6) or "excitation" (default: sweep, excitation for payload/gear_coupling).
     noise_std : torque noise [N m] (default: random in 0.2-0.6 N m; the thesis' simulation uses 0.5).
     encoder_counts_per_motor_rev : position quantization at the motor (arm step 2 pi / (counts g)).
+    knot_offset : seconds, in [0, 0.02), by which the reference's knots (every 20 ms) are moved later.  The desired
+        acceleration of the cubic Hermite reference jumps at each knot and so does the computed-torque controller's
+        torque; with the default 0 every knot falls on a sample at rates that divide 50 Hz, where the logged
+        torque is the value after the jump while a smoothed acceleration sees both sides (a torque that leads the
+        positions by about half a sample; ``benchmarks/bench_synth_knots.py``).  Half a sample period moves the knots
+        between the samples.
 
     The first second (controller start-up transient) is not logged, so a log of ``duration`` seconds
     holds ``duration - 1`` seconds of data, with time starting at 0.
@@ -258,6 +264,12 @@ def synthesize(effect="none", seed: int = 0, joints=None, duration: float | None
         ts, Qr, Vr = excitation_trajectory(rng, moving, q0, limits, vmax, duration)
     else:
         raise DrakeEstError(f"unknown experiment '{experiment}' (use 'sweep' or 'excitation')")
+    if not 0.0 <= knot_offset < 0.02:
+        raise DrakeEstError(f"knot_offset must be in [0, 0.02) s (the knots are 20 ms apart), got {knot_offset}")
+    if knot_offset > 0:
+        # the knots moved later, the reference held at its first knot (at rest) before them
+        ts = np.concatenate([[0.0], ts + knot_offset])
+        Qr, Vr = np.vstack([Qr[:1], Qr]), np.vstack([np.zeros_like(Vr[:1]), Vr])
     traj = PiecewisePolynomial.CubicHermite(ts, Qr.T, Vr.T)
 
     # ---- diagram: plant (+ payload) <- controller (nominal model) - true friction
