@@ -97,7 +97,7 @@ def test_the_next_experiment_repeats_what_the_log_does_there():
     assert "30 %" in e["reason"] and "position_dependent_load (20 %)" in e["reason"]
 
 
-def test_a_closed_loop_level_seen_in_one_excursion_gets_the_experiment():
+def test_a_closed_loop_level_seen_in_one_excursion_gets_the_experiment(tmp_path):
     """Closed-loop spec 4411 (an asymmetric Coulomb level beside Stribeck, 250 Hz): once Stribeck is named, the level
     lowers the held-out RMSE by about 30 %, but the joint moves in the positive direction only between 17 and 44 s,
     so the paired block test cannot confirm it (a miss); the report says which repeats would."""
@@ -106,7 +106,8 @@ def test_a_closed_loop_level_seen_in_one_excursion_gets_the_experiment():
 
     _, _, log, truth = closed_loop_case(4411)
     assert truth["asymmetric_coulomb"]["extra_coulomb_negative_direction"] != 0
-    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    report = diagnose(log, robot="generic", seed=0, simulate=False)
+    d = report.to_dict()
     miss = next(r for r in d["not_found"] if r["effect"] == "asymmetric_coulomb")
     assert miss["not_separated_on_held_out_blocks"] and miss["rmse_reduction"] > 0.2
     rep = [e for e in d["next_experiment"] if e.get("stretches")]
@@ -115,6 +116,14 @@ def test_a_closed_loop_level_seen_in_one_excursion_gets_the_experiment():
     e = next(e for e in rep if "asymmetric_coulomb" in {e["effect"]} | {a["effect"] for a in e.get("also", [])})
     assert all(10 <= s["t_s"][0] and s["t_s"][1] <= 50 for s in e["stretches"])
     assert "positive direction" in e["experiment"] and e["repeats_needed"] >= 5
+    # the report shows where the gains lie: one bar per held-out group, the stretches shaded
+    g = miss["gain_concentration"]
+    assert len(g["group_gains"]) == g["groups"] == 20
+    big = sorted(g["group_gains"], key=lambda x: -x["gain"])[:g["groups_holding_gain"]]
+    assert all(any(s["t_s"][0] <= x["t_s"][0] and x["t_s"][1] <= s["t_s"][1] for s in g["stretches"]) for x in big)
+    out = report.write(tmp_path / "rep")
+    assert (out / "next_experiment.png").stat().st_size > 10_000
+    assert "![where the held-out gains lie](next_experiment.png)" in (out / "report.md").read_text()
 
 
 def test_the_docs_table_of_repeat_entries_is_its_json():

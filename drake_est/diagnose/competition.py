@@ -417,8 +417,9 @@ def gain_concentration(prep, fit_a, fit_b, joints, alpha: float = 0.05) -> dict 
     gain, and the gain over all groups is positive.  Such a candidate predicts the stretches where the log excites it
     much better and the rest no better, and the paired test cannot confirm it from so few units: the log does not
     repeat what would decide.  Returns the groups, the time stretches [s] that hold the gain, the direction, speed
-    and position of each joint there and elsewhere, and the number of groups the gain must reach
-    (:func:`groups_needed`); None when the gain is not concentrated."""
+    and position of each joint there and elsewhere, the number of groups the gain must reach
+    (:func:`groups_needed`) and every group's span [s] and gain (``group_gains``: ``sum e_a^2 - sum e_b^2`` over
+    its held-out samples in units of ``fit_a``'s held-out mean square); None when the gain is not concentrated."""
     parts = _group_diffs(prep, fit_a, fit_b, joints)
     units = [(j, g, float(x)) for j, _, gg in parts for g, x in enumerate(gg)]
     if len(units) < 3:
@@ -431,9 +432,13 @@ def gain_concentration(prep, fit_a, fit_b, joints, alpha: float = 0.05) -> dict 
     if k > GAIN_FEW_GROUPS * len(units):
         return None
     top = sorted(np.argsort(-d, kind="stable")[:k])
-    stretches, cond = [], {}
-    for j, group, _ in parts:
+    stretches, cond, per_group = [], {}, []
+    for j, group, gg in parts:
         jd = prep.joints[j]
+        t_all = jd.t[jd.rows][jd.val]
+        for g, x in enumerate(gg):
+            tg = t_all[group == g]
+            per_group.append({"joint": int(j), "t_s": [float(tg.min()), float(tg.max())], "gain": float(x)})
         gains = sorted(units[i][1] for i in top if units[i][0] == j)
         if not gains:
             continue
@@ -450,4 +455,5 @@ def gain_concentration(prep, fit_a, fit_b, joints, alpha: float = 0.05) -> dict 
         inside = np.isin(group, gains)
         cond[str(j)] = {"in_gain_groups": _conditions(jd, inside), "elsewhere": _conditions(jd, ~inside)}
     return {"groups": len(units), "groups_holding_gain": k, "share_of_gain": float(d[top].clip(min=0).sum() / pos.sum()),
-            "stretches": stretches, "conditions": cond, "groups_needed": groups_needed(len(units), alpha)}
+            "stretches": stretches, "conditions": cond, "groups_needed": groups_needed(len(units), alpha),
+            "group_gains": per_group}

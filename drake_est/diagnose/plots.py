@@ -102,6 +102,29 @@ def write_plots(rep, out) -> list:
         fig.savefig(out / "unexplained.png", dpi=100)
         plt.close(fig)
         files.append("unexplained.png")
+    conc = sorted((r for r in res.rejected if r.get("gain_concentration")),
+                  key=lambda r: -float(r.get("rmse_reduction") or 0.0))[:4]
+    if conc:
+        # where each candidate's held-out gain lies (competition.gain_concentration): the gain per group of held-out
+        # blocks over time, the stretches that hold it shaded (next_experiment asks for them to be repeated)
+        fig, axes = plt.subplots(len(conc), 1, figsize=(10, 2.6 * len(conc)), squeeze=False)
+        for ax, r in zip(axes[:, 0], conc):
+            g = r["gain_concentration"]
+            for s in g["stretches"]:
+                ax.axvspan(s["t_s"][0], s["t_s"][1], color="C1", alpha=0.2, lw=0)
+            for x in g["group_gains"]:
+                a, b = x["t_s"]
+                ax.bar(0.5 * (a + b), x["gain"], width=max(b - a, 1e-3), color="C0" if x["gain"] >= 0 else "C3")
+            ax.axhline(0.0, color="0.5", lw=0.8)
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel("squared error removed\n[held-out mean squares]")
+            ax.set_title(f"{r['effect']} (joint {r.get('joint')}): {100 * g['share_of_gain']:.0f} % of its gain in "
+                         f"{g['groups_holding_gain']} of {g['groups']} groups; the paired test needs "
+                         f"{g['groups_needed']}")
+        fig.tight_layout()
+        fig.savefig(out / "next_experiment.png", dpi=100)
+        plt.close(fig)
+        files.append("next_experiment.png")
     specs = [("residual_time.png", "time [s]", lambda jd, rows: jd.t[rows]),
              ("residual_position.png", "arm position [rad]", lambda jd, rows: jd.q[rows]),
              ("residual_velocity.png", "velocity [rad/s]", lambda jd, rows: jd.v[rows])]

@@ -416,6 +416,8 @@ def markdown(d: dict) -> str:
         L += ["", "## Next experiment", ""]
         for e in d["next_experiment"]:
             L.append(f"- {e['reason']}: {e['experiment']}")
+        if "next_experiment.png" in files:
+            L.append("\n![where the held-out gains lie](next_experiment.png)")
     if "simulation" in d:
         s = d["simulation"]
         L += ["", "## Simulation error (Sec. 3.1)", "",
