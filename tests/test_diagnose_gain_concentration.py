@@ -142,3 +142,19 @@ def test_the_docs_table_of_repeat_entries_is_its_json():
     for line in mod.table_lines(s, "closed-loop specs 4300-4599 (`next_experiment_repeats_loop4300.json`)"):
         assert line in doc
     assert s["misses_the_entry_points_at"] == [4411] and s["logs_with_a_repeat_entry"]["null"] == []
+
+
+def test_the_direction_phrase_names_the_shares_of_the_directions_it_names():
+    """The stretches hold more of the positive direction than the rest (30 % against 0 %): the phrase says 30 %
+    positive there and 100 % negative elsewhere, not the majority direction's share."""
+    from drake_est.diagnose.unexplained import _distinct_conditions
+
+    c = {"in_gain_groups": {"positive_direction_share": 0.3, "median_speed": 1.0, "position_range": [0.0, 1.0]},
+         "elsewhere": {"positive_direction_share": 0.0, "median_speed": 1.0, "position_range": [0.0, 1.0]}}
+    assert _distinct_conditions(1, c) == ["joint 1 moving in the positive direction (30 % of those samples, 100 % "
+                                          "negative elsewhere)"]
+    c["in_gain_groups"]["positive_direction_share"], c["elsewhere"]["positive_direction_share"] = 0.6, 0.95
+    assert _distinct_conditions(1, c) == ["joint 1 moving in the negative direction (40 % of those samples, 95 % "
+                                          "positive elsewhere)"]
+    c["in_gain_groups"]["positive_direction_share"] = 0.8      # within 0.3 of the rest: not named
+    assert _distinct_conditions(1, c) == []

@@ -918,12 +918,14 @@ def _distinct_conditions(j, c) -> list:
         return []
     out = []
     if b:
-        dd = a["positive_direction_share"] - b["positive_direction_share"]
-        if abs(dd) >= CONDITION_DIRECTION_DIFF:
-            out.append(f"joint {j} moving in the {'positive' if dd > 0 else 'negative'} direction "
-                       f"({100 * max(a['positive_direction_share'], 1 - a['positive_direction_share']):.0f} % of "
-                       f"those samples, {100 * max(b['positive_direction_share'], 1 - b['positive_direction_share']):.0f}"
-                       f" % {'positive' if dd < 0 else 'negative'} elsewhere)")
+        pa, pb = a["positive_direction_share"], b["positive_direction_share"]
+        if abs(pa - pb) >= CONDITION_DIRECTION_DIFF:
+            # the direction the stretches hold more of, its share there, and the other direction's share elsewhere
+            pos = pa > pb
+            name, other = ("positive", "negative") if pos else ("negative", "positive")
+            s_in, s_out = (pa, 1.0 - pb) if pos else (1.0 - pa, pb)
+            out.append(f"joint {j} moving in the {name} direction ({100 * s_in:.0f} % of those samples, "
+                       f"{100 * s_out:.0f} % {other} elsewhere)")
         ra = a["median_speed"] / max(b["median_speed"], 1e-300)
         if ra >= CONDITION_SPEED_FACTOR or ra <= 1.0 / CONDITION_SPEED_FACTOR:
             out.append(f"joint {j} {'faster' if ra > 1 else 'slower'} than elsewhere (median {a['median_speed']:.3g} "
