@@ -935,6 +935,8 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
                                        "p_value": own[0][1]["p_value"] if own else None}
         rivals = [r for r in results if r[0].effect != e.effect and r[1]["significant"]
                   and r[1]["score"] > own[0][1]["score"] + AMBIGUITY_MARGIN]
+        if ambiguous is not None:
+            _mark_tied_rivals(ambiguous, e, own[0][1], results)
         if rivals:
             best, _ = _best_surviving(prep, m0, f0, rivals, alpha, min_gain)
             if best is not None:
@@ -955,9 +957,39 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
                                   f"fewer parameters ({best[0].n_params} < {e.n_params})",
                         "not_separated": True, **info}
                 if ambiguous is not None:
+                    tied = ambiguous.get((e.effect, e.joint), {}).get("ambiguous_with", [])
                     ambiguous[(e.effect, e.joint)] = _not_separated(best[0].effect, e.joint, own[0][1]["score"],
                                                                     best[1]["score"], paired["p_value"])
+                    if tied:
+                        ambiguous[(e.effect, e.joint)]["ambiguous_with"] = [best[0].effect] + [
+                            x for x in tied if x != best[0].effect]
     return None
+
+
+def _mark_tied_rivals(ambiguous, e, own, results) -> None:
+    """A significant rival of a finding's joint that, given the other findings, scores within
+    :data:`AMBIGUITY_MARGIN` of it or predicts the held-out data within :data:`MIN_GAIN` of its RMSE (the rules of
+    :func:`_competition` for a round's runner-up): the greedy order chose the finding in an earlier round, the final
+    model does not separate the two, so the finding is reported ambiguous with it (``ambiguous[(effect, joint)]``,
+    the tied rivals under ``ambiguous_with``, best first).  Rivals that score higher are :func:`finding_to_set_aside`'s."""
+    tied = []
+    for r in results:
+        if r[0].effect == e.effect or not r[1]["significant"] or r[1]["score"] > own["score"] + AMBIGUITY_MARGIN:
+            continue
+        sep = _separation(own.get("rmse_reduction"), r[1].get("rmse_reduction"))
+        if own["score"] - r[1]["score"] < AMBIGUITY_MARGIN or (sep is not None and sep < MIN_GAIN):
+            tied.append((r[1]["score"], r[0].effect, sep))
+    if not tied:
+        return
+    tied.sort(key=lambda x: -x[0])
+    names = [name for _, name, _ in tied]
+    ambiguous[(e.effect, e.joint)] = {
+        "ambiguous": True, "ambiguous_with": names, "runner_up": names[0], "runner_up_joint": int(e.joint),
+        "runner_up_score": float(tied[0][0]), "runner_up_significant": True, "margin": float(own["score"] - tied[0][0]),
+        "separation_given_the_other_findings": {name: (None if sep is None else float(sep)) for _, name, sep in tied},
+        "reason": (f"given the other findings, {' and '.join(names)} predict{'s' if len(names) == 1 else ''} the "
+                   f"held-out data as well (within {100 * MIN_GAIN:g} % of the RMSE or {AMBIGUITY_MARGIN:g} in "
+                   "score): the order of the search chose this finding, not the data")}
 
 
 def _resolve_named_rivals(steps, checked) -> None:
@@ -1227,6 +1259,14 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
             if key in ambiguous and not st.competition.get("ambiguous"):
                 st.competition = {**ambiguous[key], "in_its_round": {
                     k: st.competition.get(k) for k in ("runner_up", "runner_up_score", "margin")}}
+            elif key in ambiguous:
+                # already ambiguous in its round: the rivals the final model does not separate from it join
+                c = st.competition
+                more = [x for x in comp.ambiguous_rivals(ambiguous[key]) if x not in comp.ambiguous_rivals(c)
+                        and x != st.ext.effect]
+                if more:
+                    st.competition = {**c, "ambiguous_with": comp.ambiguous_rivals(c) + more,
+                                      "given_the_other_findings": ambiguous[key]}
         _resolve_named_rivals(out[3], checked)
         fit, model = out[4], out[5]
         fit._model = model
