@@ -22,6 +22,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_diagnose_testbench as B  # noqa: E402
+import bench_unexplained_shares as S  # noqa: E402
 from bench_unexplained_shares import KINDS, kind  # noqa: E402
 
 
@@ -35,20 +36,12 @@ def repeat_entries(d) -> list:
 def collect(family: str, start: int, n: int, lane: str | None = None) -> list:
     """Diagnose specs start .. start+n-1 of ``family`` (this lane's share): per log, what is planted, what the
     benchmark's judge says, and the repeat entries."""
-    from drake_est.diagnose import diagnose
-    from drake_est.errors import DataError
-    from drake_est.progress import progress
-    specs = {"loop": B.loop_cases, "testbench": B.cases}[family](start + n)
-    i, m = B._lane(lane)
     rows = []
-    for k in progress(range(start + i, start + n, m), desc=f"{family} next experiments"):
-        spec = specs[k]
-        log, truth = B.family_log(family, spec)
-        try:
-            d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
-        except DataError as e:
-            rows.append({"k": k, "family": family, "refused": str(e)})
+    for k, spec, truth, rep, refused in S.diagnosed_specs(family, start, n, lane, "next experiments"):
+        if rep is None:
+            rows.append(refused)
             continue
+        d = rep.to_dict()
         nv = (truth.get("not_visible") if family == "loop" else None) or {}
         j = B.judge(spec, d, optional=nv)
         rows.append({"k": k, "family": family, "planted": [e for e in spec["effects"] if not e.startswith("_")],
@@ -88,12 +81,7 @@ def table_lines(s, label) -> list:
 
 def main(argv=None):
     ap = argparse.ArgumentParser()
-    ap.add_argument("--family", default="loop", choices=["loop", "testbench"])
-    ap.add_argument("--start", type=int, default=0)
-    ap.add_argument("--n", type=int, default=100)
-    ap.add_argument("--lane", default=None, metavar="I/N")
-    ap.add_argument("--json", default=None)
-    ap.add_argument("--from-json", default=None, help="comma-separated outputs of earlier runs (lanes) to merge")
+    S.block_arguments(ap)
     a = ap.parse_args(argv)
     if a.from_json:
         rows = sorted((r for f in a.from_json.split(",") for r in json.load(open(f))["rows"]),
@@ -107,8 +95,7 @@ def main(argv=None):
         print(f"{key}: {out[key]}")
     print(f"with a repeat entry: {out['logs_with_a_repeat_entry']}")
     if a.json:
-        from drake_est.jsonutil import to_jsonable
-        Path(a.json).write_text(json.dumps(out, separators=(",", ":"), default=to_jsonable, allow_nan=False))
+        S.write_compact(out, a.json)
     return out
 
 

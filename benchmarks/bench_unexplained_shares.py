@@ -39,21 +39,48 @@ def kind(row) -> str:
     return "oov" if planted & (set(B.OOV) | set(B.LOOP_OOV)) else "vocab"
 
 
-def collect(family: str, start: int, n: int, lane: str | None = None) -> list:
-    """Diagnose specs start .. start+n-1 of ``family`` (this lane's share) and keep each log's test readings."""
+def diagnosed_specs(family: str, start: int, n: int, lane: str | None = None, desc: str = ""):
+    """Diagnose specs start .. start+n-1 of ``family`` (this lane's share, ``--lane I/N``) with the generic axis:
+    yields (k, spec, truth, report, refused): the report, or None and the row {"k", "family", "refused"} of a log
+    the diagnosis refuses with a one-line DataError."""
     from drake_est.diagnose import diagnose
     from drake_est.errors import DataError
     from drake_est.progress import progress
     specs = {"loop": B.loop_cases, "testbench": B.cases}[family](start + n)
     i, m = B._lane(lane)
-    rows = []
-    for k in progress(range(start + i, start + n, m), desc=f"{family} readings"):
+    for k in progress(range(start + i, start + n, m), desc=f"{family} {desc}".strip()):
         spec = specs[k]
         log, truth = B.family_log(family, spec)
         try:
-            rep = diagnose(log, robot="generic", seed=0, simulate=False)
+            rep, refused = diagnose(log, robot="generic", seed=0, simulate=False), None
         except DataError as e:
-            rows.append({"k": k, "family": family, "refused": str(e)})
+            rep, refused = None, {"k": k, "family": family, "refused": str(e)}
+        yield k, spec, truth, rep, refused
+
+
+def block_arguments(ap) -> None:
+    """The command-line options of a script that diagnoses a block of benchmark specs (:func:`diagnosed_specs`)
+    or merges earlier runs (lanes)."""
+    ap.add_argument("--family", default="loop", choices=["loop", "testbench"])
+    ap.add_argument("--start", type=int, default=0)
+    ap.add_argument("--n", type=int, default=100)
+    ap.add_argument("--lane", default=None, metavar="I/N")
+    ap.add_argument("--json", default=None)
+    ap.add_argument("--from-json", default=None, help="comma-separated outputs of earlier runs (lanes) to merge")
+
+
+def write_compact(out, path) -> None:
+    """``out`` as compact strict JSON (thousands of rows: dump_json indents, which doubles the size)."""
+    from drake_est.jsonutil import to_jsonable
+    Path(path).write_text(json.dumps(out, separators=(",", ":"), default=to_jsonable, allow_nan=False))
+
+
+def collect(family: str, start: int, n: int, lane: str | None = None) -> list:
+    """Diagnose specs start .. start+n-1 of ``family`` (this lane's share) and keep each log's test readings."""
+    rows = []
+    for k, spec, truth, rep, refused in diagnosed_specs(family, start, n, lane, "readings"):
+        if rep is None:
+            rows.append(refused)
             continue
         nv = truth.get("not_visible") if family == "loop" else None
         rows.append({"k": k, "family": family, "planted": [e for e in spec["effects"] if not e.startswith("_")],
@@ -154,12 +181,7 @@ def print_summary(s) -> None:
 
 def main(argv=None):
     ap = argparse.ArgumentParser()
-    ap.add_argument("--family", default="loop", choices=["loop", "testbench"])
-    ap.add_argument("--start", type=int, default=0)
-    ap.add_argument("--n", type=int, default=100)
-    ap.add_argument("--lane", default=None, metavar="I/N")
-    ap.add_argument("--json", default=None)
-    ap.add_argument("--from-json", default=None, help="comma-separated outputs of earlier runs (lanes) to merge")
+    block_arguments(ap)
     ap.add_argument("--test", default=None, help="with --shares: the test whose share threshold is varied")
     ap.add_argument("--shares", default="", help="comma-separated share thresholds for --test")
     a = ap.parse_args(argv)
@@ -171,9 +193,7 @@ def main(argv=None):
     out = {"rows": rows, **summary(rows, a.test, shares)}
     print_summary(out)
     if a.json:
-        # thousands of rows of readings: compact strict JSON (dump_json indents, which doubles the size)
-        from drake_est.jsonutil import to_jsonable
-        Path(a.json).write_text(json.dumps(out, separators=(",", ":"), default=to_jsonable, allow_nan=False))
+        write_compact(out, a.json)
     return out
 
 

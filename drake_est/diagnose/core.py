@@ -320,6 +320,21 @@ def _energy_cols(model, j):
     return None
 
 
+def _design_with_shared(model, j):
+    """``model``'s design of joint ``j`` with the columns of its shared (several-joint) extensions."""
+    X = model.design(j)
+    shared = model.shared_exts()
+    return np.hstack([X] + [e.cols[j] for e in shared]) if shared else X
+
+
+def _inner_fits(model, jd, X=None) -> "InnerFits":
+    """The detectors' inner split of joint ``jd``'s training rows (fit on blocks 0 mod 4, error on blocks 2 mod 4)
+    against ``model`` (its design ``X`` when already built)."""
+    X = _design_with_shared(model, jd.joint) if X is None else X
+    block = block_index(jd.t, jd.rows)
+    return InnerFits(X, jd.y, jd.train & (block % 4 == 0), jd.train & (block % 4 == 2), model.nonneg(jd.joint))
+
+
 def _candidates(prep, model, fit, accepted, cache=None, changed=None):
     """All extensions proposed for the current residual (not yet accepted ones). ``cache``: joint ->
     proposals from the previous round, reused for joints whose model did not change."""
@@ -330,20 +345,9 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             continue
         start = len(out)
         r = _residual(prep, fit, j)
-        X = model.design(j)
-        shared = model.shared_exts()
-        if shared:
-            X = np.hstack([X] + [e.cols[j] for e in shared])
-        t_rows = jd.t[jd.rows]
-        block = block_index(jd.t, jd.rows)
-        inner_tr = jd.train & (block % 4 == 0)
-        inner_va = jd.train & (block % 4 == 2)
-        y = jd.y
-
-        nn = model.nonneg(j)
-
-        inner = InnerFits(X, y, inner_tr, inner_va, nn)
-        train = InnerFits(X, y, jd.train, None, nn)
+        X = _design_with_shared(model, j)
+        inner = _inner_fits(model, jd, X)
+        train = InnerFits(X, jd.y, jd.train, None, model.nonneg(j))
 
         def fit_inner(C, nonneg=False, inner=inner):
             """Inner-split error of the model plus columns C (``nonneg``: C's coefficients kept >= 0 too)."""
@@ -772,12 +776,7 @@ def backfit_stribeck(prep, model, fit, sigma):
     def redetect(model, e, jd, r_p):
         j = e.joint
         m0 = Model(prep, [x for x in model.exts if x is not e])
-        X = m0.design(j)
-        shared = m0.shared_exts()
-        if shared:
-            X = np.hstack([X] + [x.cols[j] for x in shared])
-        block = block_index(jd.t, jd.rows)
-        inner = InnerFits(X, jd.y, jd.train & (block % 4 == 0), jd.train & (block % 4 == 2), m0.nonneg(j))
+        inner = _inner_fits(m0, jd)
         new = det.stribeck(jd, r_p, lambda C, nonneg=False: inner.error(C, nonneg)[0],
                            falling=j in m0.fit(sigma).kv_held)
         if new is None or new.spec == e.spec:
