@@ -136,3 +136,22 @@ def test_false_alarm_rate_on_many_null_logs():
             ps.append(r["p"])
     assert flagged == 0
     assert len(ps) >= 70 and sum(p < 0.01 for p in ps) <= 3
+
+
+def test_stribeck_entry_says_the_selection_left_the_slow_samples_out():
+    """Closed-loop spec 4980 (10 Hz: a position load and a Lorentzian Stribeck law, every moving sample below 2 vs).
+    The selection's speed bound is ten times the velocity's sample-to-sample change (46 % of the top speed), so the
+    Stribeck law is untestable although the log moves slowly: the next-experiment entry says so, with the bound and
+    how many slow samples it left out.  A 250 Hz log's bound is 5 % of its top speed and its entries carry no note."""
+    from conftest import bench_module
+    B = bench_module("bench_diagnose_testbench")
+    log, _ = B.loop_log(4980)
+    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    e = next(x for x in d["next_experiment"] if x["reason"].startswith("stribeck untestable"))
+    assert "sample-to-sample change of the velocity at 10 Hz" in e["reason"]
+    assert 0.3 < e["selection_speed_bound_share_of_top_speed"] < 0.7
+    assert e["slow_samples_left_out"] > 100
+    assert e["selection_speed_bound"] == pytest.approx(d["data"]["selection"]["1"]["v_min"])
+    log, _ = B.loop_log(4543)
+    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    assert not any("selection_speed_bound" in x for x in d["next_experiment"])

@@ -800,6 +800,37 @@ def _reversal_entry(j, r, step, alpha, min_share):
             "profile_time_s": r["profile_time_s"], "profile_mean_residual": r["profile_mean_residual"]}
 
 
+def _speed_bound_of_selection(jd) -> dict:
+    """Where the data selection's speed bound (:func:`~drake_est.diagnose.nominal.select_rows`, (9.9)) is ten times
+    the sample-to-sample change of the velocity rather than 5 % of the top speed, the log may hold slow samples that
+    the selection leaves out: at a low sample rate a fast-changing motion changes the velocity between samples by
+    much more than the noise (constant-speed sweeps do not).  Returns that note (``selection_note``, added to the
+    reason) and its numbers, or {}."""
+    from drake_est.diagnose.nominal import V_MIN_FRACTION
+    thr = jd.counts.get("thresholds") or {}
+    v_min = thr.get("v_min")
+    av = np.abs(jd.v)
+    vref = float(np.quantile(av, 0.95)) if av.size else 0.0
+    if not v_min or vref <= 0 or v_min <= 1.01 * V_MIN_FRACTION * vref:
+        return {}
+    slow = (av > V_MIN_FRACTION * vref) & (av <= v_min)
+    fs = 1.0 / float(np.median(np.diff(jd.t))) if jd.t.size > 1 else float("nan")
+    return {"selection_note": (f"the data selection (9.9) keeps speeds above {v_min:.3g} per s ({100 * v_min / vref:.0f} % "
+                               f"of the top speed), ten times the typical sample-to-sample change of the velocity at "
+                               f"{fs:.3g} Hz, and leaves out the {int(slow.sum())} samples between {V_MIN_FRACTION * vref:.3g} "
+                               f"and {v_min:.3g} per s"),
+            "selection_speed_bound": float(v_min), "selection_speed_bound_share_of_top_speed": float(v_min / vref),
+            "slow_samples_left_out": int(slow.sum())}
+
+
+def _add_selection_note(exp, jd) -> None:
+    """Add :func:`_speed_bound_of_selection`'s note to a Stribeck entry's reason, and its numbers to the entry."""
+    sel = _speed_bound_of_selection(jd)
+    if sel:
+        exp["reason"] += ": " + sel.pop("selection_note")
+        exp.update(sel)
+
+
 def next_experiments(prep, steps, duration, rejected=()) -> list:
     """Experiments that would decide what this log cannot: ambiguous findings, untestable candidates, and
     candidates of the last round (``rejected``) whose held-out gain sits in a few stretches of the log
@@ -873,21 +904,25 @@ def next_experiments(prep, steps, duration, rejected=()) -> list:
         testable = stribeck_speeds(jd.v[jd.rows]).size > 0
         if not testable:
             vmax = float(np.quantile(v, 0.95))
-            out.append({"reason": "stribeck untestable: too few low-speed samples", "joint": int(j),
-                        "speed_range": [0.01 * vmax, 0.3 * vmax],
-                        "experiment": f"constant-speed sweeps of joint {j} at 8 speeds from {0.01 * vmax:.3g} "
-                                      f"to {0.3 * vmax:.3g} per s (log spaced), 10 s each, both directions"})
+            exp = {"reason": "stribeck untestable: too few low-speed samples", "joint": int(j),
+                   "speed_range": [0.01 * vmax, 0.3 * vmax],
+                   "experiment": f"constant-speed sweeps of joint {j} at 8 speeds from {0.01 * vmax:.3g} "
+                                 f"to {0.3 * vmax:.3g} per s (log spaced), 10 s each, both directions"}
+            _add_selection_note(exp, jd)
+            out.append(exp)
         named = {s.ext.effect for s in steps if int(s.ext.joint) == int(j)}
         if testable and "stribeck" not in named and v.size:
             # the Stribeck scan starts at half the slowest selected speed: a hump below that is not testable here
             lo_sel = float(np.quantile(v, 0.02))
             vmax = float(np.quantile(v, 0.95))
             if lo_sel > 0.02 * vmax:
-                out.append({"reason": f"stribeck with vs below {0.5 * lo_sel:.3g} per s untestable: the slowest "
-                                      f"selected speed is {lo_sel:.3g} per s (data selection (9.9))",
-                            "joint": int(j), "speed_range": [0.01 * vmax, lo_sel],
-                            "experiment": f"constant-speed sweeps of joint {j} at 6 speeds from {0.01 * vmax:.3g} to "
-                                          f"{lo_sel:.3g} per s (log spaced), 10 s each, both directions"})
+                exp = {"reason": f"stribeck with vs below {0.5 * lo_sel:.3g} per s untestable: the slowest "
+                                 f"selected speed is {lo_sel:.3g} per s (data selection (9.9))",
+                       "joint": int(j), "speed_range": [0.01 * vmax, lo_sel],
+                       "experiment": f"constant-speed sweeps of joint {j} at 6 speeds from {0.01 * vmax:.3g} to "
+                                     f"{lo_sel:.3g} per s (log spaced), 10 s each, both directions"}
+                _add_selection_note(exp, jd)
+                out.append(exp)
         # one speed level: the same test as the competition's (competition.speed_level_ratio)
         if speed_level_ratio(jd) < ONE_SPEED_RATIO and not any(e.get("joint") == j and "ripple" in e.get("experiment", "") for e in out):
             out.append({"reason": "one speed only: position-periodic and time-periodic cannot be told apart",
