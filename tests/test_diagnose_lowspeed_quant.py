@@ -184,3 +184,26 @@ def test_a_flexible_winner_is_ambiguous_with_a_rival_the_quantization_guard_held
         if f["effect"] != "asymmetric_coulomb":
             assert "asymmetric_coulomb" in f.get("ambiguous_between", []), f["effect"]
             assert f["competition"].get("separated_below_quantization_step")
+
+
+def test_selection_noise_scan_alternative_keeps_the_slow_samples_of_a_smooth_10_hz_motion():
+    """benchmarks/bench_selection_noise_scan.py's second-difference estimate (tried in the twenty-second round, not
+    kept): on a smooth, noise-free motion at 10 Hz the library's first-difference bound leaves out the slow samples
+    that the alternative keeps; on white velocity noise at 1 kHz both bounds are ten times the noise."""
+    from conftest import bench_module
+    S = bench_module("bench_selection_noise_scan")
+    t = np.arange(1200) * 0.1
+    v = np.sin(2 * np.pi * 0.1 * t)
+    a = 2 * np.pi * 0.1 * np.cos(2 * np.pi * 0.1 * t)
+    lib = select_rows(v, a, t)[0]
+    alt = S.alternative_selection(v, a, t, "second-differences")
+    assert alt.sum() > lib.sum() + 200 and not (lib & ~alt).any()
+    one = S.alternative_selection(v, a, t, "second-differences-one-speed")
+    assert not (one & ~alt).any()
+    t = np.arange(20000) * 1e-3
+    noisy = 0.12 * np.sin(2 * np.pi * 0.2 * t) + np.random.default_rng(2).normal(0, 0.01, t.size)
+    zero = np.zeros_like(t)
+    lib = select_rows(noisy, zero, t)[0]
+    assert select_rows(noisy, zero, t)[2]["v_min"] == pytest.approx(0.1, rel=0.05)      # ten times the noise
+    alt = S.alternative_selection(noisy, zero, t, "second-differences")
+    assert abs(int(alt.sum()) - int(lib.sum())) < 0.02 * lib.sum()
