@@ -142,7 +142,9 @@ def test_stribeck_entry_says_the_selection_left_the_slow_samples_out():
     """Closed-loop spec 4980 (10 Hz: a position load and a Lorentzian Stribeck law, every moving sample below 2 vs).
     The selection's speed bound is ten times the velocity's sample-to-sample change (46 % of the top speed), so the
     Stribeck law is untestable although the log moves slowly: the next-experiment entry says so, with the bound and
-    how many slow samples it left out.  A 250 Hz log's bound is 5 % of its top speed and its entries carry no note."""
+    how many slow samples it left out, and the rate at which the same motion would be selected down to 5 % of the top
+    speed (93 Hz); logged at that rate, Stribeck is named.  A 250 Hz log's bound is 5 % of its top speed and its
+    entries carry no note."""
     from conftest import bench_module
     B = bench_module("bench_diagnose_testbench")
     log, _ = B.loop_log(4980)
@@ -152,6 +154,33 @@ def test_stribeck_entry_says_the_selection_left_the_slow_samples_out():
     assert 0.3 < e["selection_speed_bound_share_of_top_speed"] < 0.7
     assert e["slow_samples_left_out"] > 100
     assert e["selection_speed_bound"] == pytest.approx(d["data"]["selection"]["1"]["v_min"])
+    # the same motion logged at the rate the entry asks for: the bound is 5 % of the top speed and Stribeck is named
+    fs = e["sample_rate_hz_needed"]
+    assert 60 <= fs <= 150 and f"logged at {fs:.0f} Hz or faster" in e["experiment"]
+    spec = dict(B.loop_cases(4981)[4980], sample_rate=fs)
+    log2, truth2 = B.loop_log(spec)
+    d2 = diagnose(log2, robot="generic", seed=0, simulate=False).to_dict()
+    assert not any("selection_speed_bound" in x for x in d2["next_experiment"])      # bound at 5 % of the top speed
+    assert "stribeck" in {f["effect"] for f in d2["findings"]}
     log, _ = B.loop_log(4543)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert not any("selection_speed_bound" in x for x in d["next_experiment"])
+
+
+def test_next_experiment_rate_benchmark_json_agrees_with_its_rows_the_kept_rows_and_the_docs():
+    """benchmarks/bench_next_experiment_rate.py's kept JSON: its summary is what its rows give, it covers every kept
+    row where a planted Stribeck law was missed (a kept row changed since would show here), and the docs quote it."""
+    from pathlib import Path
+
+    from conftest import bench_module
+    root = Path(__file__).resolve().parents[1]
+    R = bench_module("bench_next_experiment_rate")
+    s = json.loads((root / "benchmarks" / "results" / "next_experiment_rate.json").read_text())
+    assert R.summarize(s["rows"]) == s["summary"]
+    misses = {(f, k) for f, k, kind in R.logs_to_check() if kind == "miss"}
+    assert {(r["family"], r["k"]) for r in s["rows"] if r["kind"] == "miss"} == misses
+    m = s["summary"]["miss"]
+    assert m["at_that_rate_wrong_names"] == 0 == s["summary"]["null"]["at_that_rate_wrong_names"]
+    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    assert (f"at that rate {m['at_that_rate_stribeck_named']} of the {m['asking_for_a_faster_log']} name the Stribeck "
+            "law") in " ".join(doc.split())

@@ -805,7 +805,8 @@ def _speed_bound_of_selection(jd) -> dict:
     the sample-to-sample change of the velocity rather than 5 % of the top speed, the log may hold slow samples that
     the selection leaves out: at a low sample rate a fast-changing motion changes the velocity between samples by
     much more than the noise (constant-speed sweeps do not).  Returns that note (``selection_note``, added to the
-    reason) and its numbers, or {}."""
+    reason), the sample rate at which the bound would be 5 % of the top speed (``experiment_note``,
+    ``sample_rate_hz_needed``: the bound scales with the sample period) and the numbers, or {}."""
     from drake_est.diagnose.nominal import V_MIN_FRACTION
     thr = jd.counts.get("thresholds") or {}
     v_min = thr.get("v_min")
@@ -815,19 +816,27 @@ def _speed_bound_of_selection(jd) -> dict:
         return {}
     slow = (av > V_MIN_FRACTION * vref) & (av <= v_min)
     fs = 1.0 / float(np.median(np.diff(jd.t))) if jd.t.size > 1 else float("nan")
+    # a smooth motion's velocity changes between samples by about a dt: the bound falls with the sample period, and
+    # reaches 5 % of the top speed at about this rate
+    fs_needed = float(np.ceil(fs * v_min / (V_MIN_FRACTION * vref)))
     return {"selection_note": (f"the data selection (9.9) keeps speeds above {v_min:.3g} per s ({100 * v_min / vref:.0f} % "
                                f"of the top speed), ten times the typical sample-to-sample change of the velocity at "
                                f"{fs:.3g} Hz, and leaves out the {int(slow.sum())} samples between {V_MIN_FRACTION * vref:.3g} "
                                f"and {v_min:.3g} per s"),
+            "experiment_note": (f"; or the same motion logged at {fs_needed:.0f} Hz or faster (the velocity's "
+                                "sample-to-sample change falls with the sample period, and the selection's speed bound "
+                                "with it)"),
             "selection_speed_bound": float(v_min), "selection_speed_bound_share_of_top_speed": float(v_min / vref),
-            "slow_samples_left_out": int(slow.sum())}
+            "slow_samples_left_out": int(slow.sum()), "sample_rate_hz_needed": fs_needed}
 
 
 def _add_selection_note(exp, jd) -> None:
-    """Add :func:`_speed_bound_of_selection`'s note to a Stribeck entry's reason, and its numbers to the entry."""
+    """Add :func:`_speed_bound_of_selection`'s note to a Stribeck entry's reason, the faster log to its experiment,
+    and the numbers to the entry."""
     sel = _speed_bound_of_selection(jd)
     if sel:
         exp["reason"] += ": " + sel.pop("selection_note")
+        exp["experiment"] += sel.pop("experiment_note")
         exp.update(sel)
 
 
