@@ -1,4 +1,4 @@
-"""Does the faster log that a Stribeck entry of ``next_experiment`` asks for decide?
+"""Does the faster log that an entry of ``next_experiment`` asks for decide?
 
 Where the data selection's speed bound (9.9) is ten times the velocity's sample-to-sample change rather than 5 % of
 the top speed (at 10 Hz up to half of it), a Stribeck law is untestable, and the report's entry names the sample rate
@@ -8,7 +8,13 @@ diagnoses each log again to read that entry, generates the same spec (same motio
 rate the entry asks for, diagnoses it and judges it; as a control it does the same for the kept null logs (nothing
 planted) whose report has such an entry: at the faster rate they must stay free of names.
 
-Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_next_experiment_rate.py [--lane 0/2] --json out.json
+``--entry residual-tests`` does the same for the entry that a long derivative window gets (below 60 Hz the 7-sample
+window spans more than 0.1 s and the tests of the final residual for a delay, backlash or an elastic gear do not all
+run; the entry asks for 60 Hz): the kept rows where a visible out-of-vocabulary effect did not end as `unexplained`
+(kind ``oov``) and the kept null logs, both below 60 Hz, where the entry can appear.
+
+Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_next_experiment_rate.py [--entry stribeck|residual-tests]
+           [--lane 0/2] --json out.json
        python benchmarks/bench_next_experiment_rate.py --from-json a.json,b.json [--json merged.json]
 """
 from __future__ import annotations
@@ -23,23 +29,37 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_diagnose_testbench as B  # noqa: E402
 
 
-def rate_entries(d) -> list:
-    """The report's Stribeck entries that ask for a faster log: [(joint, sample_rate_hz_needed)]."""
-    return [(int(e["joint"]), float(e["sample_rate_hz_needed"])) for e in d["next_experiment"]
-            if e.get("sample_rate_hz_needed")]
+#: the entries this script checks: which report entries ask for a faster log
+ENTRIES = ("stribeck", "residual-tests")
 
 
-def logs_to_check(results_dir=None) -> list:
-    """[(family, k, kind)] of the kept rows: ``miss`` where a planted Stribeck law was missed, ``null`` where nothing
-    visible was planted (sorted, one per log)."""
+def rate_entries(d, entry: str = "stribeck") -> list:
+    """The report's entries of kind ``entry`` that ask for a faster log: sample rates [Hz]."""
+    if entry == "stribeck":
+        return [float(e["sample_rate_hz_needed"]) for e in d["next_experiment"]
+                if e.get("sample_rate_hz_needed") and e["reason"].startswith("stribeck")]
+    return [float(e["sample_rate_hz_needed"]) for e in d["next_experiment"] if e.get("tests_off")]
+
+
+def logs_to_check(results_dir=None, entry: str = "stribeck") -> list:
+    """[(family, k, kind)] of the kept rows (sorted, one per log).  ``stribeck``: ``miss`` where a planted Stribeck law
+    was missed, ``null`` where nothing visible was planted.  ``residual-tests``: below 60 Hz only, ``oov`` where a
+    visible out-of-vocabulary effect did not end as `unexplained`, and ``null``."""
     out = set()
     for (fam, _, k), (_, r) in B.kept_rows_naming("any", results_dir).items():
         if fam not in ("loop", "testbench"):
             continue
-        if "stribeck" in r.get("missed", []):
-            out.add((fam, k, "miss"))
-        elif r["truth"] == "none" or r["truth"].startswith("none ("):
-            out.add((fam, k, "null"))
+        null = r["truth"] == "none" or r["truth"].startswith("none (")
+        if entry == "stribeck":
+            if "stribeck" in r.get("missed", []):
+                out.add((fam, k, "miss"))
+            elif null:
+                out.add((fam, k, "null"))
+        elif r["sample_rate"] < 60.0:
+            if not r.get("oov_unexplained", True):
+                out.add((fam, k, "oov"))
+            elif null:
+                out.add((fam, k, "null"))
     return sorted(out)
 
 
@@ -55,15 +75,18 @@ def _diagnose(fam, spec):
         return nv, None, str(exc)
 
 
-def check(lane: str | None = None, null_rates=(10.0,)) -> list:
-    """One row per checked log of this lane (see the module docstring); null logs only at ``null_rates`` [Hz]."""
+def check(lane: str | None = None, entry: str = "stribeck", at_rate: float | None = None) -> list:
+    """One row per checked log of this lane (see the module docstring); for ``stribeck``, null logs at 10 Hz only.
+    ``at_rate`` [Hz]: generate the logs whose report asks for a faster log at this rate instead of the one asked for
+    (the entries say "or faster")."""
     i, n = B._lane(lane)
-    jobs = logs_to_check()
+    jobs = logs_to_check(entry=entry)
+    null_rates = (10.0,) if entry == "stribeck" else (10.0, 25.0, 50.0)
     top = {}
     for fam, k, _ in jobs:
         top[fam] = max(top.get(fam, 0), k)
     specs = {fam: {"testbench": B.cases, "loop": B.loop_cases}[fam](top[fam] + 1) for fam in top}
-    jobs = [j for j in jobs if j[2] == "miss" or specs[j[0]][j[1]].get("sample_rate") in null_rates]
+    jobs = [j for j in jobs if j[2] != "null" or specs[j[0]][j[1]].get("sample_rate") in null_rates]
     rows = []
     for fam, k, kind in jobs[i::n]:
         spec = specs[fam][k]
@@ -74,10 +97,10 @@ def check(lane: str | None = None, null_rates=(10.0,)) -> list:
             rows.append({**row, "refused": refused})
             continue
         row["got"] = B._got(d)
-        ent = rate_entries(d)
-        row["asks_for_rate_hz"] = max((fs for _, fs in ent), default=None)
+        row["asks_for_rate_hz"] = max(rate_entries(d, entry), default=None)
         if row["asks_for_rate_hz"]:
-            fast = dict(spec, sample_rate=row["asks_for_rate_hz"])
+            fast = dict(spec, sample_rate=at_rate or row["asks_for_rate_hz"])
+            row["generated_at_hz"] = fast["sample_rate"]
             nv2, d2, refused2 = _diagnose(fam, fast)
             if d2 is None:
                 row["at_that_rate"] = {"refused": refused2}
@@ -86,7 +109,7 @@ def check(lane: str | None = None, null_rates=(10.0,)) -> list:
                                        **B.judge(fast, d2, optional=nv2)}
         rows.append(row)
         print(f"{fam:9s} {k:5d} {kind:4s} {row['sample_rate']:6g} Hz  {row['got']:40s} -> "
-              + (f"{row['asks_for_rate_hz']:5.0f} Hz: {row['at_that_rate'].get('got', 'refused')}"
+              + (f"{row['generated_at_hz']:5.0f} Hz: {row['at_that_rate'].get('got', 'refused')}"
                  if row.get("asks_for_rate_hz") else "no rate entry"), flush=True)
     return rows
 
@@ -95,7 +118,7 @@ def summarize(rows) -> dict:
     """Counts per kind: logs, logs whose report asks for a faster log, and at that rate: Stribeck named (misses),
     correct, wrong names, logs with any finding (null logs)."""
     out = {}
-    for kind in ("miss", "null"):
+    for kind in [k for k in ("miss", "oov", "null") if k != "oov" or any(r["kind"] == "oov" for r in rows)]:
         rs = [r for r in rows if r["kind"] == kind]
         asked = [r for r in rs if r.get("asks_for_rate_hz")]
         judged = [r["at_that_rate"] for r in asked if "got" in r.get("at_that_rate", {})]
@@ -108,24 +131,33 @@ def summarize(rows) -> dict:
         if kind == "miss":
             out[kind]["at_that_rate_stribeck_named"] = sum("stribeck" not in j["missed"] for j in judged)
             out[kind]["rates_asked_hz"] = sorted(r["asks_for_rate_hz"] for r in asked)
+        if kind == "oov":
+            out[kind]["at_that_rate_unexplained"] = sum(j["oov_unexplained"] for j in judged)
     return out
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--entry", default="stribeck", choices=ENTRIES, help="which entries' faster logs to check")
     ap.add_argument("--lane", help="i/n: every n-th log from the i-th")
+    ap.add_argument("--at-rate", type=float, help="generate the faster logs at this rate [Hz] instead of the one asked")
     ap.add_argument("--json", help="write rows and summary here")
     ap.add_argument("--from-json", help="comma-separated JSONs of lanes to merge instead of running")
     a = ap.parse_args(argv)
+    entry, at_rate = a.entry, a.at_rate
     if a.from_json:
-        rows = [r for f in a.from_json.split(",") for r in json.load(open(f))["rows"]]
+        parts = [json.load(open(f)) for f in a.from_json.split(",")]
+        entry, at_rate = parts[0].get("entry", "stribeck"), parts[0].get("at_rate")
+        if any((p.get("entry", "stribeck"), p.get("at_rate")) != (entry, at_rate) for p in parts):
+            raise SystemExit("--from-json: the lanes were run with different --entry or --at-rate")
+        rows = [r for p in parts for r in p["rows"]]
     else:
-        rows = check(a.lane)
+        rows = check(a.lane, entry, at_rate)
     s = summarize(rows)
     print(json.dumps(s, indent=1))
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"summary": s, "rows": rows}, f, indent=1)
+            json.dump({"entry": entry, "at_rate": at_rate, "summary": s, "rows": rows}, f, indent=1)
 
 
 if __name__ == "__main__":

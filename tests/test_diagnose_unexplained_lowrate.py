@@ -184,3 +184,45 @@ def test_next_experiment_rate_benchmark_json_agrees_with_its_rows_the_kept_rows_
     doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
     assert (f"at that rate {m['at_that_rate_stribeck_named']} of the {m['asking_for_a_faster_log']} name the Stribeck "
             "law") in " ".join(doc.split())
+
+
+@pytest.mark.parametrize("rate, off", [(10.0, {"jerk_excluded_samples", "time_shift_torque_vs_position",
+                                               "snap_excluded_samples", "jerk_snap_matched_filter"}),
+                                       (50.0, {"snap_excluded_samples", "jerk_snap_matched_filter"}),
+                                       (60.0, None), (100.0, None)])
+def test_next_experiment_names_the_residual_tests_a_long_derivative_window_turns_off(rate, off):
+    """Below 60 Hz the 7-sample derivative window spans more than 0.1 s (0.2 s below 35 Hz) and some tests of the
+    final residual (those that see a delay, backlash or an elastic gear) do not run: the report says which, that they
+    run from 60 Hz, and asks for 100 Hz (the tests that ran are those the readings list)."""
+    rep, res, _ = _run({}, seed=5, rate=rate)
+    d = rep.to_dict()
+    e = [x for x in d["next_experiment"] if x.get("tests_off")]
+    ran = {r["variable"] for r in res.structure_readings}
+    if off is None:
+        assert e == []
+        assert {"jerk_excluded_samples", "time_shift_torque_vs_position"} <= ran
+        return
+    assert len(e) == 1 and set(e[0]["tests_off"]) == off and not off & ran
+    assert e[0]["sample_rate_hz_needed"] == 60.0 and e[0]["sample_rate_hz_suggested"] == 100.0
+    assert "logged at 100 Hz or faster" in e[0]["experiment"]
+
+
+@pytest.mark.parametrize("name, at_rate", [("next_experiment_rate_residual_tests.json", None),
+                                           ("next_experiment_rate_residual_tests_100hz.json", 100.0)])
+def test_residual_tests_rate_benchmark_jsons_agree_with_their_rows_the_kept_rows_and_the_docs(name, at_rate):
+    """bench_next_experiment_rate.py --entry residual-tests (at the rate asked for, and at 100 Hz): the summary is
+    what the rows give, the rows cover the kept out-of-vocabulary logs below 60 Hz that did not end as `unexplained`
+    and the kept null logs below 60 Hz, no log gains a wrong name, and the docs quote the counts."""
+    from pathlib import Path
+
+    from conftest import bench_module
+    root = Path(__file__).resolve().parents[1]
+    R = bench_module("bench_next_experiment_rate")
+    s = json.loads((root / "benchmarks" / "results" / name).read_text())
+    assert R.summarize(s["rows"]) == s["summary"] and s.get("at_rate") == at_rate
+    want = {(f, k, kind) for f, k, kind in R.logs_to_check(entry="residual-tests")}
+    assert {(r["family"], r["k"], r["kind"]) for r in s["rows"]} == want
+    o, n = s["summary"]["oov"], s["summary"]["null"]
+    assert o["at_that_rate_wrong_names"] == 0 == n["at_that_rate_wrong_names"]
+    doc = " ".join((root / "docs" / "readme" / "diagnose_testbench.md").read_text().split())
+    assert f"{o['at_that_rate_unexplained']} of the {o['asking_for_a_faster_log']}" in doc

@@ -840,6 +840,52 @@ def _add_selection_note(exp, jd) -> None:
         exp.update(sel)
 
 
+#: the next experiment for the tests of the final residual suggests the rate where the diagnosis' 0.1 s derivative
+#: window holds this many samples (100 Hz); they all run from 60 Hz, where the 7-sample minimum window just fits,
+#: but there 22 of 331 benchmark null logs gained an entry against 7 of 332 at 100 Hz
+#: (``benchmarks/bench_next_experiment_rate.py --entry residual-tests [--at-rate 100]``)
+RESIDUAL_TESTS_WINDOW_SAMPLES = 11
+
+
+def _residual_tests_entry(prep) -> dict | None:
+    """The experiment that would run the tests of the final residual that a long derivative window turns off: the
+    left-out-sample (jerk) and time-shift tests need a window of at most :data:`MAX_DERIV_WINDOW_S`, the snap and
+    matched-filter tests at most :data:`SNAP_MAX_WINDOW_S` (:func:`short_derivative_window`); these are the tests that
+    see a delay between torque and position, backlash or an elastic gear.  The window has a minimum number of samples,
+    so it spans at most those times from a sample rate on (``sample_rate_hz_needed``); the experiment asks for
+    ``sample_rate_hz_suggested`` (:data:`RESIDUAL_TESTS_WINDOW_SAMPLES`).  None when every test runs (or the log's
+    derivatives were not computed by drake_est)."""
+    der = prep.log.meta.get("derivatives") or {}
+    win, w = der.get("window_s"), der.get("window_samples")
+    if win is None or not w or not prep.joints:
+        return None
+    jd = next(iter(prep.joints.values()))
+    off, groups = [], []
+    if win > MAX_DERIV_WINDOW_S:
+        off += ["jerk_excluded_samples", "time_shift_torque_vs_position"]
+        groups.append(f"on the left-out accelerating samples and the time shift (window at most {MAX_DERIV_WINDOW_S:g} s)")
+    if not short_derivative_window(prep, jd):
+        off += ["snap_excluded_samples", "jerk_snap_matched_filter"]
+        groups.append(f"on the snap and the matched filter (at most {SNAP_MAX_WINDOW_S:g} s)")
+    if not off:
+        return None
+    fs = 1.0 / float(np.median(np.diff(jd.t)))
+    fs_needed = float(np.ceil(max((int(w) - 1) / SNAP_MAX_WINDOW_S, int(w) / MAX_DERIV_WINDOW_S) - 1e-9))
+    # at the rate where the minimum window just fits, the benchmark's null logs gained more entries (mostly the
+    # acceleration ANOVA: a 7-sample qdd) than where the diagnosis' own window holds RESIDUAL_TESTS_WINDOW_SAMPLES
+    from drake_est.diagnose.nominal import DERIV_WINDOW_S
+    fs_suggested = float(max(fs_needed, np.ceil((RESIDUAL_TESTS_WINDOW_SAMPLES - 1) / DERIV_WINDOW_S - 1e-9)))
+    return {"reason": (f"structure outside the vocabulary (a delay between torque and position, backlash, an elastic "
+                       f"gear) is only partly testable at {fs:.3g} Hz: the {int(w)}-sample derivative window spans "
+                       f"{win:.2g} s, and the tests of the final residual {' and '.join(groups)} do not run"),
+            "tests_off": off, "derivative_window_s": float(win), "sample_rate_hz_needed": fs_needed,
+            "sample_rate_hz_suggested": fs_suggested,
+            "experiment": (f"the same motion logged at {fs_suggested:.0f} Hz or faster: every test of the final residual "
+                           f"runs from {fs_needed:.0f} Hz, where the {int(w)}-sample window spans {SNAP_MAX_WINDOW_S:g} s; "
+                           f"at {fs_suggested:.0f} Hz the {DERIV_WINDOW_S:g} s window holds "
+                           f"{RESIDUAL_TESTS_WINDOW_SAMPLES} samples")}
+
+
 def next_experiments(prep, steps, duration, rejected=()) -> list:
     """Experiments that would decide what this log cannot: ambiguous findings, untestable candidates, and
     candidates of the last round (``rejected``) whose held-out gain sits in a few stretches of the log
@@ -939,6 +985,9 @@ def next_experiments(prep, steps, duration, rejected=()) -> list:
                         "experiment": f"sweeps of joint {j} at {0.4 * np.median(v):.3g} and "
                                       f"{2.0 * np.median(v):.3g} per s over the same positions"})
     out += _repeat_experiments([r for r in rejected if r.get("gain_concentration")], duration)
+    rt = _residual_tests_entry(prep)
+    if rt is not None:
+        out.append(rt)
     if duration < THERMAL_MIN_DURATION_S:
         out.append({"reason": f"log too short ({duration:.0f} s) for an hour-long thermal drift",
                     "duration_s": THERMAL_MIN_DURATION_S,
