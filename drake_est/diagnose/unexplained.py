@@ -855,9 +855,11 @@ def _residual_tests_entry(prep) -> dict | None:
     so it spans at most those times from a sample rate on (``sample_rate_hz_needed``); the experiment asks for
     ``sample_rate_hz_suggested`` (:data:`RESIDUAL_TESTS_WINDOW_SAMPLES`).  None when every test runs (or the log's
     derivatives were not computed by drake_est)."""
+    if not prep.joints:
+        return None
     der = prep.log.meta.get("derivatives") or {}
     win, w = der.get("window_s"), der.get("window_samples")
-    if win is None or not w or not prep.joints:
+    if win is None or not w:
         return None
     jd = next(iter(prep.joints.values()))
     off, groups = [], []
