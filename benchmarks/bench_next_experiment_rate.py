@@ -41,13 +41,14 @@ def rate_entries(d, entry: str = "stribeck") -> list:
     return [float(e["sample_rate_hz_needed"]) for e in d["next_experiment"] if e.get("tests_off")]
 
 
-def logs_to_check(results_dir=None, entry: str = "stribeck") -> list:
-    """[(family, k, kind)] of the kept rows (sorted, one per log).  ``stribeck``: ``miss`` where a planted Stribeck law
-    was missed, ``null`` where nothing visible was planted.  ``residual-tests``: below 60 Hz only, ``oov`` where a
-    visible out-of-vocabulary effect did not end as `unexplained`, and ``null``."""
+def logs_to_check(results_dir=None, entry: str = "stribeck", jsons=None) -> list:
+    """[(family, k, kind)] of the kept rows (sorted, one per log; of the kept JSONs named in ``jsons`` only when
+    given).  ``stribeck``: ``miss`` where a planted Stribeck law was missed, ``null`` where nothing visible was planted.
+    ``residual-tests``: below 60 Hz only, ``oov`` where a visible out-of-vocabulary effect did not end as
+    `unexplained`, and ``null``."""
     out = set()
-    for (fam, _, k), (_, r) in B.kept_rows_naming("any", results_dir).items():
-        if fam not in ("loop", "testbench"):
+    for (fam, _, k), (name, r) in B.kept_rows_naming("any", results_dir).items():
+        if fam not in ("loop", "testbench") or (jsons is not None and name not in jsons):
             continue
         null = r["truth"] == "none" or r["truth"].startswith("none (")
         if entry == "stribeck":
@@ -151,13 +152,17 @@ def main(argv=None):
         if any((p.get("entry", "stribeck"), p.get("at_rate")) != (entry, at_rate) for p in parts):
             raise SystemExit("--from-json: the lanes were run with different --entry or --at-rate")
         rows = [r for p in parts for r in p["rows"]]
+        kept = parts[0].get("kept_jsons")
+        if any(p.get("kept_jsons") != kept for p in parts):
+            raise SystemExit("--from-json: the lanes read different kept JSONs")
     else:
         rows = check(a.lane, entry, at_rate)
+        kept = [f.name for f in B.kept_jsons()]
     s = summarize(rows)
     print(json.dumps(s, indent=1))
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"entry": entry, "at_rate": at_rate, "summary": s, "rows": rows}, f, indent=1)
+            json.dump({"entry": entry, "at_rate": at_rate, "kept_jsons": kept, "summary": s, "rows": rows}, f, indent=1)
 
 
 if __name__ == "__main__":
