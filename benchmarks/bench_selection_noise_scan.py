@@ -53,20 +53,10 @@ def alternative_selection(v, a, t, alternative: str = "second-differences") -> n
     return mask
 
 
-def _derivatives(log):
-    """The log with the derivatives :func:`drake_est.diagnose.nominal.prepare` uses."""
-    from drake_est.data import Log
-    from drake_est.diagnose.nominal import DERIV_WINDOW_S
-    if log.dq is None or log.ddq is None or "derivatives" in log.meta:
-        return Log(t=log.t, q=log.q, tau=log.tau, joints=list(log.joints), channels=dict(log.channels),
-                   meta={k: v for k, v in log.meta.items() if k != "derivatives"}).with_derivatives(window_s=DERIV_WINDOW_S)
-    return log
-
-
 def scan(alternative: str, lane: str = "0/1") -> list:
     """[{family, k, sample_rate, changed: [{joint, rows_library, rows_alternative}]}] over this lane's kept logs."""
     import bench_diagnose_testbench as B
-    from drake_est.diagnose.nominal import select_rows
+    from drake_est.diagnose.nominal import select_rows, with_diagnosis_derivatives
     i, n = B._lane(lane)
     kept = B.kept_rows_naming("any")
     logs = sorted({(fam, k) for fam, _, k in kept})
@@ -81,7 +71,7 @@ def scan(alternative: str, lane: str = "0/1") -> list:
     out = []
     for fam, k in logs[i::n]:
         spec = specs(fam)[k]
-        log = _derivatives(B.family_log(fam, spec)[0])
+        log = with_diagnosis_derivatives(B.family_log(fam, spec)[0])
         changed = []
         for j in log.joints:
             c = log.col(j)

@@ -584,16 +584,22 @@ def select_coupled_rigid_body(j, q, v, a, tau, idx_moving, idx_steady, t, others
     return tau_c, info
 
 
+def with_diagnosis_derivatives(log):
+    """``log`` with the derivatives the diagnosis uses: measured ones as they are; ones computed by drake_est (or
+    none) recomputed over :data:`DERIV_WINDOW_S`, longer than the loader's default (the torque comparison needs
+    low-noise accelerations)."""
+    if log.dq is None or log.ddq is None or "derivatives" in log.meta:
+        from drake_est.data import Log
+        log = Log(t=log.t, q=log.q, tau=log.tau, joints=list(log.joints), channels=dict(log.channels),
+                  meta={k: v for k, v in log.meta.items() if k != "derivatives"}).with_derivatives(window_s=DERIV_WINDOW_S)
+    return log
+
+
 def prepare(log, robot="generic", joints=None, seed: int = 0, max_rows: int = MAX_ROWS) -> Prepared:
     """Derivatives, rigid-body torques, data selection, split and outlier screen for the diagnosis."""
     if log.tau is None:
         raise DataError("the log has no torque columns (tau<j>); the diagnosis compares torques")
-    if log.dq is None or log.ddq is None or "derivatives" in log.meta:
-        # derivatives computed by drake_est (not measured): recompute over a longer window than the
-        # loader's default, the torque comparison needs low-noise accelerations
-        from drake_est.data import Log
-        log = Log(t=log.t, q=log.q, tau=log.tau, joints=list(log.joints), channels=dict(log.channels),
-                  meta={k: v for k, v in log.meta.items() if k != "derivatives"}).with_derivatives(window_s=DERIV_WINDOW_S)
+    log = with_diagnosis_derivatives(log)
     kind, model, meta = load_robot(robot)
     if joints is None:
         joints = list(log.joints)
