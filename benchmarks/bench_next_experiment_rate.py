@@ -83,10 +83,7 @@ def check(lane: str | None = None, entry: str = "stribeck", at_rate: float | Non
     i, n = B._lane(lane)
     jobs = logs_to_check(entry=entry)
     null_rates = (10.0,) if entry == "stribeck" else (10.0, 25.0, 50.0)
-    top = {}
-    for fam, k, _ in jobs:
-        top[fam] = max(top.get(fam, 0), k)
-    specs = {fam: {"testbench": B.cases, "loop": B.loop_cases}[fam](top[fam] + 1) for fam in top}
+    specs = B._specs_of({(fam, None, k) for fam, k, _ in jobs})
     jobs = [j for j in jobs if j[2] != "null" or specs[j[0]][j[1]].get("sample_rate") in null_rates]
     rows = []
     for fam, k, kind in jobs[i::n]:
@@ -119,7 +116,7 @@ def summarize(rows) -> dict:
     """Counts per kind: logs, logs whose report asks for a faster log, and at that rate: Stribeck named (misses),
     correct, wrong names, logs with any finding (null logs)."""
     out = {}
-    for kind in [k for k in ("miss", "oov", "null") if k != "oov" or any(r["kind"] == "oov" for r in rows)]:
+    for kind in [k for k in ("miss", "oov", "null") if any(r["kind"] == k for r in rows)]:
         rs = [r for r in rows if r["kind"] == kind]
         asked = [r for r in rs if r.get("asks_for_rate_hz")]
         judged = [r["at_that_rate"] for r in asked if "got" in r.get("at_that_rate", {})]

@@ -23,7 +23,6 @@ import argparse
 import json
 import os
 import sys
-from functools import lru_cache
 
 import numpy as np
 
@@ -60,17 +59,10 @@ def scan(alternative: str, lane: str = "0/1") -> list:
     i, n = B._lane(lane)
     kept = B.kept_rows_naming("any")
     logs = sorted({(fam, k) for fam, _, k in kept})
-    top = {}
-    for fam, k in logs:
-        top[fam] = max(top.get(fam, 0), k)
-
-    @lru_cache(None)
-    def specs(fam):
-        return {"testbench": B.cases, "loop": B.loop_cases, "synth": B.synth_cases}[fam](top[fam] + 1)
-
+    specs = B._specs_of(kept)
     out = []
     for fam, k in logs[i::n]:
-        spec = specs(fam)[k]
+        spec = specs[fam][k]
         log = with_diagnosis_derivatives(B.family_log(fam, spec)[0])
         changed = []
         for j in log.joints:

@@ -499,7 +499,7 @@ def _competition(ext, tst, results, prep=None) -> dict:
             elif comp.paired_block_test(prep, fe, fw, sorted(js & set(e.cols)))["p_value"] >= PAIRED_ALPHA:
                 close.append(e.effect)
             continue
-        sep = _separation(tst.get("rmse_reduction"), t.get("rmse_reduction"))
+        tie, sep = _tie(tst, t)
         if not t["significant"]:
             # a winner that is a constant torque while moving (an asymmetric Coulomb level) and a rival whose
             # model contains it (a position load: its kernels sum to a constant over the positions visited) that
@@ -511,9 +511,9 @@ def _competition(ext, tst, results, prep=None) -> dict:
                 close.append(e.effect)
                 below_min_gain[e.effect] = float(sep)
             continue
-        if float(tst["score"] - t["score"]) < AMBIGUITY_MARGIN:
+        if tie == "margin":
             close.append(e.effect)
-        elif sep is not None and sep < MIN_GAIN:
+        elif tie == "min_gain":
             # every finding must lower the held-out RMSE by MIN_GAIN; a rival that predicts within MIN_GAIN of the
             # winner's RMSE is not separated from it, however many samples make the score margin large (an
             # asymmetric Coulomb level is a constant torque while moving, and so is a position load that hardly
@@ -585,6 +585,20 @@ def _separation(r_winner, r_rival):
     if r_winner is None or r_rival is None or r_rival >= 1.0:
         return None
     return 1.0 - (1.0 - float(r_winner)) / (1.0 - float(r_rival))
+
+
+def _tie(winner, rival):
+    """Whether the tests of one round do not separate a winner from a rival (``winner``, ``rival``: their tests):
+    ``"margin"`` when the scores are within :data:`AMBIGUITY_MARGIN`, ``"min_gain"`` when the winner predicts the
+    held-out data within :data:`MIN_GAIN` of the rival's RMSE (:func:`_separation`), else None; with the separation
+    (None when an RMSE reduction is missing).  Used for a round's rivals (:func:`_competition`) and for the rivals of
+    a finding given the other findings (:func:`_mark_tied_rivals`)."""
+    sep = _separation(winner.get("rmse_reduction"), rival.get("rmse_reduction"))
+    if float(winner["score"] - rival["score"]) < AMBIGUITY_MARGIN:
+        return "margin", sep
+    if sep is not None and sep < MIN_GAIN:
+        return "min_gain", sep
+    return None, sep
 
 
 def _speed_confound(out, tst) -> dict:
@@ -967,16 +981,16 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
 
 def _mark_tied_rivals(ambiguous, e, own, results) -> None:
     """A significant rival of a finding's joint that, given the other findings, scores within
-    :data:`AMBIGUITY_MARGIN` of it or predicts the held-out data within :data:`MIN_GAIN` of its RMSE (the rules of
-    :func:`_competition` for a round's runner-up): the greedy order chose the finding in an earlier round, the final
+    :data:`AMBIGUITY_MARGIN` of it or predicts the held-out data within :data:`MIN_GAIN` of its RMSE (:func:`_tie`,
+    as for a round's rivals in :func:`_competition`): the greedy order chose the finding in an earlier round, the final
     model does not separate the two, so the finding is reported ambiguous with it (``ambiguous[(effect, joint)]``,
     the tied rivals under ``ambiguous_with``, best first).  Rivals that score higher are :func:`finding_to_set_aside`'s."""
     tied = []
     for r in results:
         if r[0].effect == e.effect or not r[1]["significant"] or r[1]["score"] > own["score"] + AMBIGUITY_MARGIN:
             continue
-        sep = _separation(own.get("rmse_reduction"), r[1].get("rmse_reduction"))
-        if own["score"] - r[1]["score"] < AMBIGUITY_MARGIN or (sep is not None and sep < MIN_GAIN):
+        tie, sep = _tie(own, r[1])
+        if tie is not None:
             tied.append((r[1]["score"], r[0].effect, sep))
     if not tied:
         return
@@ -1261,11 +1275,10 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
             elif key in ambiguous:
                 # already ambiguous in its round: the rivals the final model does not separate from it join
                 c = st.competition
-                more = [x for x in comp.ambiguous_rivals(ambiguous[key]) if x not in comp.ambiguous_rivals(c)
-                        and x != st.ext.effect]
+                had = comp.ambiguous_rivals(c)
+                more = [x for x in comp.ambiguous_rivals(ambiguous[key]) if x not in had and x != st.ext.effect]
                 if more:
-                    st.competition = {**c, "ambiguous_with": comp.ambiguous_rivals(c) + more,
-                                      "given_the_other_findings": ambiguous[key]}
+                    st.competition = {**c, "ambiguous_with": had + more, "given_the_other_findings": ambiguous[key]}
         _resolve_named_rivals(out[3], checked)
         fit, model = out[4], out[5]
         fit._model = model
