@@ -227,6 +227,14 @@ def short_derivative_window(prep, jd) -> bool:
     return (int(w) - 1) * h <= SNAP_MAX_WINDOW_S + 1e-9
 
 
+def long_derivative_window(prep) -> bool:
+    """Whether the log's derivatives were computed by drake_est over more than :data:`MAX_DERIV_WINDOW_S`: the
+    left-out-sample, time-shift and matched-filter tests of the final residual do not run then
+    (:func:`residual_structure`), and the next experiment asks for a faster log (:func:`_residual_tests_entry`)."""
+    win = (prep.log.meta.get("derivatives") or {}).get("window_s")
+    return win is not None and win > MAX_DERIV_WINDOW_S
+
+
 def quantization_nuisance(M, step, n_harmonics=QUANT_HARMONICS):
     """Columns sin(2 pi k M / step), cos(2 pi k M / step), k = 1 .. ``n_harmonics``, of the model torque ``M``: the
     rounding error of a torque quantized with ``step`` (little noise before the ADC) is a sawtooth in the torque
@@ -670,8 +678,7 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE, 
         r = _whiteness(e, block_index(jd.t, rows))
         if r is not None:
             tests.append((j, "time_correlation", r))
-        win = (prep.log.meta.get("derivatives") or {}).get("window_s")
-        if win is None or win <= MAX_DERIV_WINDOW_S:
+        if not long_derivative_window(prep):
             for name, r in (_excluded_moving(prep, fit, j) or {}).items():
                 if r is not None:
                     tests.append((j, name, r))
@@ -863,7 +870,7 @@ def _residual_tests_entry(prep) -> dict | None:
         return None
     jd = next(iter(prep.joints.values()))
     off, groups = [], []
-    if win > MAX_DERIV_WINDOW_S:
+    if long_derivative_window(prep):
         off += ["jerk_excluded_samples", "time_shift_torque_vs_position"]
         groups.append(f"on the left-out accelerating samples and the time shift (window at most {MAX_DERIV_WINDOW_S:g} s)")
     if not short_derivative_window(prep, jd):
