@@ -979,6 +979,47 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
     return None
 
 
+def level_alternatives(prep, model, fit, max_findings, alpha, min_gain, blocked=frozenset()) -> dict:
+    """The model-level rival of a finding that contains its joint's asymmetric Coulomb level (a position load:
+    its kernels sum to a constant over the positions visited, and a constant torque while moving is that level
+    given the nominal [qd, sign(qd)], :func:`_contains`).  The rounds compare the two given the findings of their
+    time, whose shapes (a Stribeck law's, say) were fitted beside the load; the search run again with the finding
+    closed fits them beside the level instead.  When it ends at the same findings with the level in the finding's
+    place and the held-out blocks do not show the final model predicting the joint better than that alternative
+    (:func:`~drake_est.diagnose.competition.paired_block_test` at :data:`PAIRED_ALPHA`), the log does not decide
+    between the two explanations of the offset (loop spec 5775: an asymmetric level beside a Lorentzian Stribeck
+    law at 250 Hz, named as a position load).  Returns ``{(effect, joint): competition fields}`` of such findings
+    (the model is not changed)."""
+    out = {}
+    named = {(x.effect, None if x.shared else x.joint) for x in model.exts}
+    for e in model.exts:
+        if e.shared:
+            continue
+        lvl = det.asymmetric(prep.joints[e.joint], None)
+        if lvl is None or (lvl.effect, e.joint) in named or not _contains(prep, e, lvl):
+            continue
+        alt = _search(prep, max_findings, alpha, min_gain, set(blocked) | {(e.effect, e.joint)})
+        got = {(x.effect, None if x.shared else x.joint) for x in alt[5].exts}
+        if got != (named - {(e.effect, e.joint)}) | {(lvl.effect, e.joint)}:
+            continue
+        paired = comp.paired_block_test(prep, alt[4], fit, [e.joint])
+        if paired["p_value"] < PAIRED_ALPHA:
+            continue
+        rm, ra = _val_metrics(prep, fit, [e.joint])["rmse"], _val_metrics(prep, alt[4], [e.joint])["rmse"]
+        out[(e.effect, e.joint)] = {
+            "ambiguous": True, "ambiguous_with": [lvl.effect], "runner_up": lvl.effect,
+            "runner_up_joint": int(e.joint), "runner_up_significant": True, "paired_p_value": float(paired["p_value"]),
+            "alternative_model": {"findings": sorted(x for x, _ in got), "heldout_rmse": float(ra),
+                                  "heldout_rmse_of_final_model": float(rm),
+                                  "paired_groups": paired["groups"], "groups_final_model_better": paired["groups_better"]},
+            "reason": (f"with {e.effect} closed the search ends at the same findings with {lvl.effect} in its place "
+                       f"(held-out RMSE {ra:.3g} against {rm:.3g}), and the held-out blocks do not show the final "
+                       f"model predicting better (paired p = {paired['p_value']:.2g}, {paired['groups_better']} of "
+                       f"{paired['groups']} groups): the log does not decide between the two explanations of the "
+                       "constant torque while moving")}
+    return out
+
+
 def _mark_tied_rivals(ambiguous, e, own, results) -> None:
     """A significant rival of a finding's joint that, given the other findings, scores within
     :data:`AMBIGUITY_MARGIN` of it or predicts the held-out data within :data:`MIN_GAIN` of its RMSE (:func:`_tie`,
@@ -1261,6 +1302,15 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
             prep.meta.pop("payload_ext", None)
             out = _search(prep, max_findings, alpha, min_gain, blocked)
             ambiguous = {}      # marks of a model that was just replaced
+        # a finding that holds its joint's asymmetric level, against the search run again with the level in its
+        # place (level_alternatives): ambiguous with the level when the held-out blocks do not separate the two models
+        for key, c in level_alternatives(prep, out[5], out[4], max_findings, alpha, min_gain, blocked).items():
+            if key in ambiguous:
+                had = comp.ambiguous_rivals(ambiguous[key])
+                ambiguous[key] = {**ambiguous[key], "ambiguous_with": had + [x for x in c["ambiguous_with"] if x not in had],
+                                  "level_alternative": c}
+            else:
+                ambiguous[key] = c
         # findings that a rival is not separated from on the held-out blocks: ambiguous between the two (those of
         # the final model's check, and the simpler rivals a finding was set aside for)
         for r in set_aside:
