@@ -31,6 +31,15 @@ Two checks that run before a candidate of :mod:`drake_est.diagnose.core` is acce
   position-dependent friction or load that is not significant given the free friction curve is reported as
   ambiguous with ``stribeck``, or with ``asymmetric_coulomb`` when one friction level per direction explains a load
   alone (:func:`position_law_confounded`); it stays in the model.
+* **A later finding that a disturbance's dither of the Coulomb friction explains.**  A torque disturbance periodic in
+  time shakes the axis: at speeds below the velocity amplitude A it adds, the Coulomb level averages over the
+  dither to kc (2/pi) arcsin(qd/A) instead of kc sign(qd) (the describing function of a relay under a sinusoid),
+  a friction deficit at low speed that no vocabulary entry has and that a position law fits where positions and
+  speeds go together (loop spec 5369: a 15 Hz disturbance sampled at 50 Hz, then a position load).  On a joint
+  whose model holds a time-periodic disturbance, every other candidate must stay significant given that column
+  (:func:`dither_nuisance`: A and a positive coefficient fitted on the training rows), the same partial F-test; a
+  position-dependent friction g(q) sign(qd) stands when it does so as it is or in its dithered form g(q) (2/pi)
+  arcsin(qd/A).
 """
 from __future__ import annotations
 
@@ -220,6 +229,77 @@ def speed_law_nuisance(prep, j, knots: int = SPEED_LAW_KNOTS):
         H[idx, k + 1] = w
         cols.append(H * side[:, None])
     return np.hstack(cols) if cols else None
+
+
+#: dither velocity amplitudes A tried by :func:`dither_nuisance` (log spaced from half the 2 % to the 90 % quantile of
+#: the training speeds)
+DITHER_GRID = 24
+
+
+def dithered_sign(v, A: float) -> np.ndarray:
+    """The mean of sign(qd + A sin phi) over a uniform phase phi: (2/pi) arcsin(qd / A), clipped to +-1 beyond A
+    (the Coulomb level seen through a sinusoidal dither of velocity amplitude ``A``)."""
+    return (2.0 / np.pi) * np.arcsin(np.clip(np.asarray(v, float) / A, -1.0, 1.0))
+
+
+def dither_nuisance(prep, model, j):
+    """One column (at the joint's used rows), dithered_sign(qd, A) - sign(qd): the change of a Coulomb friction
+    that a time-periodic disturbance of joint ``j`` in ``model`` dithers (module docstring), with A on
+    :data:`DITHER_GRID` chosen by the training residual of the model plus the column, whose coefficient must be
+    positive (a dither lowers the mean friction; a negative one would be a friction excess at low speed, Stribeck).
+    None when the model holds no time-periodic disturbance of the joint or no A gives a positive coefficient."""
+    if not any(e.effect == "time_periodic_disturbance" and not e.shared and e.joint == j for e in model.exts):
+        return None
+    jd = prep.joints[j]
+    v = jd.v[jd.rows]
+    av = np.abs(v[jd.train])
+    av = av[av > 0]
+    if av.size < 10:
+        return None
+    X = model.design(j)
+    shared = model.shared_exts()
+    if shared:
+        X = np.hstack([X] + [e.cols[j] for e in shared])
+    Xt, yt = X[jd.train], jd.y[jd.train]
+    best = None
+    for A in np.geomspace(0.5 * float(np.quantile(av, 0.02)), float(np.quantile(av, 0.9)), DITHER_GRID):
+        c = dithered_sign(v, A) - np.sign(v)
+        M = np.hstack([Xt, c[jd.train][:, None]])
+        coef, *_ = np.linalg.lstsq(M, yt, rcond=None)
+        if not coef[-1] > 0:
+            continue
+        e = yt - M @ coef
+        rss = float(e @ e)
+        if best is None or rss < best[0]:
+            best = (rss, c)
+    return None if best is None else best[1][:, None]
+
+
+def survives_dither(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None) -> dict:
+    """Partial held-out F-test of ``ext`` given the dither column of its joint (:func:`dither_nuisance`; module
+    docstring); ``{"significant": True, "skipped": ...}`` when it does not apply."""
+    if ext.shared or ext.effect == "time_periodic_disturbance":
+        return {"significant": True, "skipped": "a disturbance itself or a shared extension"}
+    N = dither_nuisance(prep, model, ext.joint) if nuisance is None else nuisance
+    if N is None:
+        return {"significant": True, "skipped": "no time-periodic disturbance in the model, or no dither"}
+    C = ext.cols[ext.joint]
+    t = _partial_test(prep, model, ext.joint, N, C, alpha, min_gain, solve)
+    if not t["significant"] and ext.effect in DITHERED_WITH_THE_LEVEL:
+        # a Coulomb level that changes with position is dithered like the level: g(q) sign(qd) averages to
+        # g(q) (2/pi) arcsin(qd/A), i.e. the columns times dithered_sign / sign (1 + N sign(qd)); the candidate
+        # stands when either form explains what the dither column does not (loop specs 4167 and 4343)
+        jd = prep.joints[ext.joint]
+        td = _partial_test(prep, model, ext.joint, N, C * (1.0 + N[:, 0] * np.sign(jd.v[jd.rows]))[:, None],
+                           alpha, min_gain, solve)
+        if td["significant"]:
+            return {**td, "dithered_form": True}
+    return t
+
+
+#: candidates whose columns are a function of position times sign(qd): tested by :func:`survives_dither` in their
+#: dithered form too
+DITHERED_WITH_THE_LEVEL = ("position_dependent_friction",)
 
 
 def survives_speed_law(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None) -> dict:

@@ -663,11 +663,12 @@ def _model_solver(model, j):
 def _best_surviving(prep, model, fit, sig, alpha, min_gain):
     """The best significant candidate that is not a smooth speed/time law merely absorbing a periodic
     residual (:func:`~drake_est.diagnose.competition.survives_periodic`), nor a law in time merely absorbing a
-    misfit of the friction curve (:func:`~drake_est.diagnose.competition.survives_speed_law`); (None, [...]) when
-    none is left.  Also returns the candidates set aside that way, with their partial tests (``explained_by``:
-    ``"periodic_residual"`` or ``"speed_law"``)."""
+    misfit of the friction curve (:func:`~drake_est.diagnose.competition.survives_speed_law`), nor one that a
+    disturbance's dither of the Coulomb friction explains (:func:`~drake_est.diagnose.competition.survives_dither`);
+    (None, [...]) when none is left.  Also returns the candidates set aside that way, with their partial tests
+    (``explained_by``: ``"periodic_residual"``, ``"speed_law"`` or ``"dither"``)."""
     sig = sorted(sig, key=lambda r: -r[1]["score"])
-    away, nuisance, speed_nuisance = [], {}, {}
+    away, nuisance, speed_nuisance, dither = [], {}, {}, {}
     # joints where a better-scoring candidate was explained by the periodic residual: every lower-ranked candidate
     # that is not periodic itself must then beat that residual too (loop spec 2940: an abrupt change, score 907, was
     # explained by it, and a position load, score 417, named without that test; neither the load nor the position
@@ -703,6 +704,19 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
                 away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "periodic_residual",
                              **{k: v for k, v in t.items() if k != "significant"}})
                 continue
+        if not ext.shared and ext.effect != "time_periodic_disturbance":
+            # a disturbance in the model dithers the Coulomb friction of its joint (competition.dither_nuisance)
+            if ext.joint not in dither:
+                dither[ext.joint] = comp.dither_nuisance(prep, model, ext.joint)
+            if dither[ext.joint] is not None:
+                t = comp.survives_dither(prep, model, fit, ext, alpha, min_gain, nuisance=dither[ext.joint],
+                                         solve=_model_solver(model, ext.joint))
+                if not t["significant"]:
+                    r[1]["significant"] = False
+                    r[1]["explained_by_dither"] = True
+                    away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "dither",
+                                 **{k: v for k, v in t.items() if k != "significant"}})
+                    continue
         if ext.effect in comp.POSITION_LAWS and not ext.shared:
             if ext.joint not in speed_nuisance:
                 speed_nuisance[ext.joint] = comp.speed_law_nuisance(prep, ext.joint)

@@ -369,6 +369,11 @@ def markdown(d: dict) -> str:
             if c.get("reason"):
                 L.append(f"Why ambiguous: {c['reason']}.")
             for a in c.get("explained_by_periodic_residual", []):
+                if a.get("explained_by") == "dither":
+                    L.append(f"Set aside: `{a['effect']}` (joint {a['joint']}) only absorbed the time-periodic "
+                             "disturbance's dither of the Coulomb friction (partial held-out F-test given "
+                             f"(2/pi) arcsin(qd/A) - sign(qd): p = {a['p_value']:.3g}).")
+                    continue
                 if a.get("explained_by") == "speed_law":
                     L.append(f"Set aside: `{a['effect']}` (joint {a['joint']}) only absorbed a misfit of the friction "
                              f"curve (partial held-out F-test given a free friction curve of each direction: "
