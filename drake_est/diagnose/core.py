@@ -1024,8 +1024,8 @@ def level_alternatives(prep, model, fit, max_findings, alpha, min_gain, blocked=
             "ambiguous": True, "ambiguous_with": [lvl.effect], "runner_up": lvl.effect,
             "runner_up_joint": int(e.joint), "runner_up_significant": True, "paired_p_value": float(paired["p_value"]),
             "alternative_model": {"findings": sorted(x for x, _ in got), "heldout_rmse": float(ra),
-                                  "heldout_rmse_of_final_model": float(rm),
-                                  "paired_groups": paired["groups"], "groups_final_model_better": paired["groups_better"]},
+                                  "heldout_rmse_of_final_model": float(rm), "paired_groups": paired["groups"],
+                                  "groups_final_model_better": paired["groups_better"]},
             "reason": (f"with {e.effect} closed the search ends at the same findings with {lvl.effect} in its place "
                        f"(held-out RMSE {ra:.3g} against {rm:.3g}), and the held-out blocks do not show the final "
                        f"model predicting better (paired p = {paired['p_value']:.2g}, {paired['groups_better']} of "
@@ -1321,8 +1321,8 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
         for key, c in level_alternatives(prep, out[5], out[4], max_findings, alpha, min_gain, blocked).items():
             if key in ambiguous:
                 had = comp.ambiguous_rivals(ambiguous[key])
-                ambiguous[key] = {**ambiguous[key], "ambiguous_with": had + [x for x in c["ambiguous_with"] if x not in had],
-                                  "level_alternative": c}
+                more = [x for x in c["ambiguous_with"] if x not in had]
+                ambiguous[key] = {**ambiguous[key], "ambiguous_with": had + more, "level_alternative": c}
             else:
                 ambiguous[key] = c
         # findings that a rival is not separated from on the held-out blocks: ambiguous between the two (those of
