@@ -63,6 +63,22 @@ def closed_loop_case(k: int):
     return (mod, spec) + tuple(mod.loop_log(spec))
 
 
+def nominal_candidates(effects: dict, seed: int):
+    """(prep, sigma, {effect: candidate}) of an open-loop testbench log (120 s at 100 Hz, noise 0.05) of a generic
+    axis: the first round's candidates against the nominal model, and the noise level the search starts from."""
+    import numpy as np
+    from drake_est.diagnose import core
+    from drake_est.diagnose.nominal import prepare
+    from drake_est.diagnose.testbench import generate
+    log, _ = generate(effects, seed=seed, duration=120.0, sample_rate=100.0, noise_std=0.05)
+    prep = prepare(log, robot="generic")
+    model = core.Model(prep)
+    fit = model.fit()
+    sigma = {j: float(np.sqrt(fit.rss_val[j] / prep.joints[j].val.sum())) for j in prep.joints}
+    cands = {e.effect: e for e in core._candidates(prep, model, fit, set())}
+    return prep, sigma, cands
+
+
 BROWSER_SHOT = Path(__file__).resolve().parents[2] / "shared" / "browser" / "shot"
 
 

@@ -4,10 +4,9 @@ whose model holds a disturbance, every other candidate must stay significant giv
 import numpy as np
 import pytest
 
-from conftest import bench_module
+from conftest import bench_module, nominal_candidates
 from drake_est.diagnose import competition as comp
 from drake_est.diagnose import core
-from drake_est.diagnose.nominal import prepare
 
 
 def test_dithered_sign_is_the_phase_mean_of_the_dithered_sign():
@@ -18,18 +17,8 @@ def test_dithered_sign_is_the_phase_mean_of_the_dithered_sign():
         assert comp.dithered_sign(v, A) == pytest.approx(np.mean(np.sign(v + A * np.sin(phi))), abs=2e-4)
 
 
-def _prep(effects, seed=5):
-    from drake_est.diagnose.testbench import generate
-    log, _ = generate(effects, seed=seed, duration=120.0, sample_rate=100.0, noise_std=0.05)
-    prep = prepare(log, robot="generic")
-    model = core.Model(prep)
-    fit = model.fit()
-    cands = {e.effect: e for e in core._candidates(prep, model, fit, set())}
-    return prep, cands
-
-
 def test_no_dither_column_without_a_disturbance_in_the_model():
-    prep, cands = _prep({"time_periodic_disturbance": 1.0})
+    prep, _, cands = nominal_candidates({"time_periodic_disturbance": 1.0}, seed=5)
     assert comp.dither_nuisance(prep, core.Model(prep), 1) is None
     assert comp.dither_nuisance(prep, core.Model(prep, [cands["asymmetric_coulomb"]]), 1) is None
     t = comp.survives_dither(prep, core.Model(prep), None, cands["asymmetric_coulomb"], core.ALPHA, core.MIN_GAIN)
@@ -45,7 +34,7 @@ def test_no_dither_column_without_a_disturbance_in_the_model():
 def test_a_planted_level_beside_a_disturbance_is_not_explained_by_the_dither():
     """An asymmetric Coulomb level is a constant torque while moving, at every speed; the dither column vanishes
     above its amplitude, so it cannot take the level's place."""
-    prep, cands = _prep({"time_periodic_disturbance": 1.0, "asymmetric_coulomb": 1.0})
+    prep, _, cands = nominal_candidates({"time_periodic_disturbance": 1.0, "asymmetric_coulomb": 1.0}, seed=5)
     model = core.Model(prep, [cands["time_periodic_disturbance"]])
     fit = model.fit()
     t = comp.survives_dither(prep, model, fit, cands["asymmetric_coulomb"], core.ALPHA, core.MIN_GAIN,

@@ -1,13 +1,11 @@
 """The model-level rival of a finding that holds its joint's asymmetric Coulomb level (core.level_alternatives): the
 search run again with the finding closed; when it ends at the same findings with the level in the finding's place and
 the held-out blocks do not separate the two final models, the finding is reported ambiguous with the level."""
-import numpy as np
 import pytest
 
-from conftest import bench_module
+from conftest import bench_module, nominal_candidates
 from drake_est.diagnose import core
 from drake_est.diagnose import detectors as det
-from drake_est.diagnose.nominal import prepare
 
 
 @pytest.mark.parametrize("ulps", [0, 3])
@@ -31,22 +29,11 @@ def test_loop_case_5775_load_is_ambiguous_with_the_level_it_holds(ulps):
     assert alt["heldout_rmse_of_final_model"] < alt["heldout_rmse"]
 
 
-def _prep(effects, seed=3):
-    from drake_est.diagnose.testbench import generate
-    log, _ = generate(effects, seed=seed, duration=120.0, sample_rate=100.0, noise_std=0.05)
-    prep = prepare(log, robot="generic")
-    model = core.Model(prep)
-    fit = model.fit()
-    sigma = {j: float(np.sqrt(fit.rss_val[j] / prep.joints[j].val.sum())) for j in prep.joints}
-    cands = {e.effect: e for e in core._candidates(prep, model, fit, set())}
-    return prep, sigma, cands
-
-
 def test_only_a_finding_that_holds_the_level_and_not_beside_it_gets_an_alternative(monkeypatch):
     """A load holds the level (its kernels sum to a constant over the visited positions); a position friction
     (kernels times sign(qd)) does not.  A model that already names the level gets no alternative, and neither does
     one whose finding does not hold it: the search is not run again for them."""
-    prep, sigma, cands = _prep({"position_dependent_load": 1.0})
+    prep, sigma, cands = nominal_candidates({"position_dependent_load": 1.0}, seed=3)
     lvl = det.asymmetric(prep.joints[1], None)
     assert core._contains(prep, cands["position_dependent_load"], lvl)
     assert not core._contains(prep, cands["position_dependent_friction"], lvl)
@@ -65,7 +52,7 @@ def test_a_planted_load_is_separated_from_the_level():
     and the held-out blocks show the load's model predicting better in every group, so the load stays named
     outright."""
     from drake_est.diagnose import competition as comp
-    prep, sigma, cands = _prep({"position_dependent_load": 1.0})
+    prep, sigma, cands = nominal_candidates({"position_dependent_load": 1.0}, seed=3)
     model = core.Model(prep, [cands["position_dependent_load"]])
     fit = model.fit(sigma)
     alt = core._search(prep, core.MAX_FINDINGS, core.ALPHA, core.MIN_GAIN, {("position_dependent_load", 1)})

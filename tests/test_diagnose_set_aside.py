@@ -5,20 +5,10 @@ import pytest
 
 from drake_est.diagnose import core
 from drake_est.diagnose import detectors as det
-from drake_est.diagnose.nominal import JointData, block_split, prepare
+from drake_est.diagnose.nominal import JointData, block_split
 from drake_est.diagnose.testbench import generate
 
-from conftest import bench_module
-
-
-def _round0(effects, seed):
-    log, truth = generate(effects, seed=seed, duration=120.0, sample_rate=100.0, noise_std=0.05)
-    prep = prepare(log, robot="generic")
-    model = core.Model(prep)
-    fit = model.fit()
-    sigma = {j: float(np.sqrt(fit.rss_val[j] / prep.joints[j].val.sum())) for j in prep.joints}
-    cands = {e.effect: e for e in core._candidates(prep, model, fit, set())}
-    return prep, sigma, cands
+from conftest import bench_module, nominal_candidates
 
 
 def test_a_load_standing_in_for_an_asymmetric_coulomb_level_is_set_aside():
@@ -26,7 +16,7 @@ def test_a_load_standing_in_for_an_asymmetric_coulomb_level_is_set_aside():
     position load holds a constant: a load accepted for it (before a ripple) is no longer the best explanation once
     the round is run without it (the asymmetric level scores higher with 1 parameter instead of 10); with the
     planted findings nothing is set aside.  (The last finding is not checked: it won the round before it.)"""
-    prep, sigma, cands = _round0({"asymmetric_coulomb": 1.0, "motor_position_ripple": 1.0}, seed=11)
+    prep, sigma, cands = nominal_candidates({"asymmetric_coulomb": 1.0, "motor_position_ripple": 1.0}, seed=11)
     wrong = core.Model(prep, [cands["position_dependent_load"], cands["motor_position_ripple"]])
     bad = core.finding_to_set_aside(prep, wrong, sigma, core.ALPHA, core.MIN_GAIN)
     assert bad is not None
@@ -40,7 +30,7 @@ def test_a_load_standing_in_for_an_asymmetric_coulomb_level_is_set_aside():
 def test_a_finding_that_a_later_one_explains_is_set_aside():
     """A ripple log: a position friction accepted before the ripple is not significant once the ripple is in the
     model, and is set aside (the backward half of a stepwise search)."""
-    prep, sigma, cands = _round0({"motor_position_ripple": 1.0}, seed=5)
+    prep, sigma, cands = nominal_candidates({"motor_position_ripple": 1.0}, seed=5)
     m = core.Model(prep, [cands["position_dependent_friction"], cands["motor_position_ripple"]])
     bad = core.finding_to_set_aside(prep, m, sigma, core.ALPHA, core.MIN_GAIN)
     assert bad is not None and bad[0] == "position_dependent_friction"
