@@ -663,10 +663,12 @@ def _model_solver(model, j):
 def _best_surviving(prep, model, fit, sig, alpha, min_gain):
     """The best significant candidate that is not a smooth speed/time law merely absorbing a periodic
     residual (:func:`~drake_est.diagnose.competition.survives_periodic`), nor a law in time merely absorbing a
-    misfit of the friction curve (:func:`~drake_est.diagnose.competition.survives_speed_law`), nor one that a
-    disturbance's dither of the Coulomb friction explains (:func:`~drake_est.diagnose.competition.survives_dither`);
-    (None, [...]) when none is left.  Also returns the candidates set aside that way, with their partial tests
-    (``explained_by``: ``"periodic_residual"``, ``"speed_law"`` or ``"dither"``)."""
+    misfit of the friction curve (:func:`~drake_est.diagnose.competition.survives_speed_law`), nor a change in time
+    that the windows with bursts of misfit decide (:func:`~drake_est.diagnose.competition.survives_window_weights`),
+    nor one that a disturbance's dither of the Coulomb friction explains
+    (:func:`~drake_est.diagnose.competition.survives_dither`); (None, [...]) when none is left.  Also returns the
+    candidates set aside that way, with their partial tests (``explained_by``: ``"periodic_residual"``,
+    ``"speed_law"``, ``"uneven_residual"`` or ``"dither"``)."""
     sig = sorted(sig, key=lambda r: -r[1]["score"])
     away, nuisance, speed_nuisance, dither = [], {}, {}, {}
     # joints where a better-scoring candidate was explained by the periodic residual: every lower-ranked candidate
@@ -688,6 +690,14 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
                 r[1]["significant"] = False
                 r[1]["explained_by_speed_law"] = True
                 away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "speed_law",
+                             **{k: v for k, v in t.items() if k != "significant"}})
+                continue
+            t = comp.survives_window_weights(prep, model, fit, ext, alpha, min_gain,
+                                             solve=_model_solver(model, ext.joint))
+            if not t["significant"]:
+                r[1]["significant"] = False
+                r[1]["explained_by_uneven_residual"] = True
+                away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "uneven_residual",
                              **{k: v for k, v in t.items() if k != "significant"}})
                 continue
         after = ext.joint in periodic_led

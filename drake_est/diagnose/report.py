@@ -374,6 +374,11 @@ def markdown(d: dict) -> str:
                              "disturbance's dither of the Coulomb friction (partial held-out F-test given "
                              f"(2/pi) arcsin(qd/A) - sign(qd): p = {a['p_value']:.3g}).")
                     continue
+                if a.get("explained_by") == "uneven_residual":
+                    L.append(f"Set aside: `{a['effect']}` (joint {a['joint']}) won only through the time windows "
+                             "with bursts of misfit (held-out F-test weighted by each window's residual level: "
+                             f"p = {a['p_value']:.3g}, RMSE reduction {100 * a['rmse_reduction']:.2g} %).")
+                    continue
                 if a.get("explained_by") == "speed_law":
                     L.append(f"Set aside: `{a['effect']}` (joint {a['joint']}) only absorbed a misfit of the friction "
                              f"curve (partial held-out F-test given a free friction curve of each direction: "
