@@ -183,10 +183,7 @@ def periodic_nuisance(prep, model, fit, j):
     import drake_est.diagnose.detectors as det
     jd = prep.joints[j]
     r = jd.y - fit.pred[j]
-    X = model.design(j)
-    shared = model.shared_exts()
-    if shared:
-        X = np.hstack([X] + [e.cols[j] for e in shared])
+    X = model.design_with_shared(j)
 
     def fitted(A):
         c, *_ = np.linalg.lstsq(A[jd.train], jd.y[jd.train], rcond=None)
@@ -263,10 +260,7 @@ def dither_nuisance(prep, model, j):
     av = av[av > 0]
     if av.size < 10:
         return None
-    X = model.design(j)
-    shared = model.shared_exts()
-    if shared:
-        X = np.hstack([X] + [e.cols[j] for e in shared])
+    X = model.design_with_shared(j)
     Xt, yt = X[jd.train], jd.y[jd.train]
     best = None
     for A in np.geomspace(0.5 * float(np.quantile(av, 0.02)), float(np.quantile(av, 0.9)), DITHER_GRID):
@@ -356,10 +350,7 @@ def survives_window_weights(prep, model, fit, ext, alpha: float, min_gain: float
     solve = solve or _lstsq
     j = ext.joint
     jd = prep.joints[j]
-    X = model.design(j)
-    shared = model.shared_exts()
-    if shared:
-        X = np.hstack([X] + [e.cols[j] for e in shared])
+    X = model.design_with_shared(j)
     C = ext.cols[j]
     A1 = np.hstack([X, C])
     n_nominal = len(nominal_names(prep.robot_kind))
@@ -471,10 +462,7 @@ def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None, weights=Non
     solve = solve or _lstsq
     n_nominal = len(nominal_names(prep.robot_kind))
     jd = prep.joints[j]
-    X = model.design(j)
-    shared = model.shared_exts()
-    if shared:
-        X = np.hstack([X] + [e.cols[j] for e in shared])
+    X = model.design_with_shared(j)
     A0 = np.hstack([X, N])
     A1 = np.hstack([A0, C])
     y = jd.y

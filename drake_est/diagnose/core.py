@@ -203,6 +203,12 @@ class Model:
             blocks.append(extra)
         return np.hstack(blocks)
 
+    def design_with_shared(self, j):
+        """:meth:`design` of joint ``j`` with the columns of the shared (several-joint) extensions after it."""
+        X = self.design(j)
+        shared = self.shared_exts()
+        return np.hstack([X] + [e.cols[j] for e in shared]) if shared else X
+
     def penalized(self, j) -> np.ndarray:
         """Which columns of :meth:`design` carry the ridge: not the nominal ones, and not the gravity/spring
         harmonics sin q, cos q of a position-dependent load (physical, well conditioned columns whose
@@ -320,17 +326,10 @@ def _energy_cols(model, j):
     return None
 
 
-def _design_with_shared(model, j):
-    """``model``'s design of joint ``j`` with the columns of its shared (several-joint) extensions."""
-    X = model.design(j)
-    shared = model.shared_exts()
-    return np.hstack([X] + [e.cols[j] for e in shared]) if shared else X
-
-
 def _inner_fits(model, jd, X=None) -> "InnerFits":
     """The detectors' inner split of joint ``jd``'s training rows (fit on blocks 0 mod 4, error on blocks 2 mod 4)
     against ``model`` (its design ``X`` when already built)."""
-    X = _design_with_shared(model, jd.joint) if X is None else X
+    X = model.design_with_shared(jd.joint) if X is None else X
     block = block_index(jd.t, jd.rows)
     return InnerFits(X, jd.y, jd.train & (block % 4 == 0), jd.train & (block % 4 == 2), model.nonneg(jd.joint))
 
@@ -345,7 +344,7 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             continue
         start = len(out)
         r = _residual(prep, fit, j)
-        X = _design_with_shared(model, j)
+        X = model.design_with_shared(j)
         inner = _inner_fits(model, jd, X)
         train = InnerFits(X, jd.y, jd.train, None, model.nonneg(j))
 
@@ -840,14 +839,11 @@ def backfit_inertia(prep, model, fit) -> dict:
     out = {}
     if prep.robot is not None:
         return out
-    shared = model.shared_exts()
     for j, jd in prep.joints.items():
         J = jd.counts.get("inertia")
         if J is None:
             continue
-        X = model.design(j)
-        if shared:
-            X = np.hstack([X] + [e.cols[j] for e in shared])
+        X = model.design_with_shared(j)
         tr = jd.train
         A = np.column_stack([jd.a[jd.rows], X])[tr]
         y = jd.y[tr]
