@@ -454,7 +454,35 @@ def markdown(d: dict) -> str:
                     L.append(f"- {r['effect']}{where}: {r['reason']}; the search was run again without it")
     if d.get("not_found"):
         L += ["", "## Candidates rejected in the last round", ""]
+        alpha, min_gain = (d.get("settings") or {}).get("alpha"), (d.get("settings") or {}).get("min_rmse_reduction")
         for r in d["not_found"][:6]:
+            why = rejection_reason(r, alpha, min_gain)
             L.append(f"- {r['effect']} (joint {r['joint']}): held-out RMSE reduction {100 * r['rmse_reduction']:.2f} %, "
-                     f"p = {r['p_value']:.3g}")
+                     f"p = {r['p_value']:.3g}" + (f" -- {why}" if why else ""))
     return "\n".join(L) + "\n"
+
+
+#: why a candidate of the last round was not accepted, by the flag its test carries (the first that applies)
+REJECTION_REASONS = (
+    ("negative_friction", "it would leave a friction below zero at some speed"),
+    ("below_quantization_step", "its change of the prediction stays within the torque ADC's rounding"),
+    ("not_separated_on_held_out_blocks", "its gain does not hold across the held-out blocks (paired test)"),
+    ("explained_by_speed_law", "a free friction curve explains it"),
+    ("explained_by_uneven_residual", "it won only through the time windows with bursts of misfit"),
+    ("explained_by_periodic_residual", "the periodic residual explains it"),
+    ("explained_by_dither", "a disturbance's dither of the Coulomb friction explains it"),
+)
+
+
+def rejection_reason(r: dict, alpha=None, min_gain=None) -> str:
+    """One phrase saying why the candidate ``r`` (an entry of ``not_found``) was rejected: the first flag of
+    :data:`REJECTION_REASONS` it carries, else not significant at ``alpha`` or below the ``min_gain``; "" when none
+    applies (a significant candidate that lost its round to a better one)."""
+    for key, text in REJECTION_REASONS:
+        if r.get(key):
+            return text
+    if alpha is not None and r.get("p_value", 0.0) >= alpha:
+        return f"not significant (p >= {alpha:g})"
+    if min_gain is not None and r.get("rmse_reduction", 1.0) < min_gain:
+        return f"gain below {100 * min_gain:g} %"
+    return ""
