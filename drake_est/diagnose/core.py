@@ -670,6 +670,14 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
     ``"speed_law"``, ``"uneven_residual"`` or ``"dither"``)."""
     sig = sorted(sig, key=lambda r: -r[1]["score"])
     away, nuisance, speed_nuisance, dither = [], {}, {}, {}
+
+    def set_aside(r, t, why):
+        """Candidate ``r`` is not significant, explained by ``why``; its partial test ``t`` goes to ``away``."""
+        r[1]["significant"] = False
+        r[1][f"explained_by_{why}"] = True
+        away.append({"effect": r[0].effect, "joint": int(r[0].joint), "explained_by": why,
+                     **{k: v for k, v in t.items() if k != "significant"}})
+
     # joints where a better-scoring candidate was explained by the periodic residual: every lower-ranked candidate
     # that is not periodic itself must then beat that residual too (loop spec 2940: an abrupt change, score 907, was
     # explained by it, and a position load, score 417, named without that test; neither the load nor the position
@@ -686,18 +694,12 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
             if t.get("confounded_with_speed"):
                 r[1]["confounded_with_speed"] = t["speed_law_given_it"]
             if not t["significant"]:
-                r[1]["significant"] = False
-                r[1]["explained_by_speed_law"] = True
-                away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "speed_law",
-                             **{k: v for k, v in t.items() if k != "significant"}})
+                set_aside(r, t, "speed_law")
                 continue
             t = comp.survives_window_weights(prep, model, fit, ext, alpha, min_gain,
                                              solve=_model_solver(model, ext.joint))
             if not t["significant"]:
-                r[1]["significant"] = False
-                r[1]["explained_by_uneven_residual"] = True
-                away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "uneven_residual",
-                             **{k: v for k, v in t.items() if k != "significant"}})
+                set_aside(r, t, "uneven_residual")
                 continue
         after = ext.joint in periodic_led
         if comp.periodic_test_applies(ext, after):
@@ -707,11 +709,8 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
                                        solve=_model_solver(model, ext.joint), any_law=after) \
                 if nuisance[ext.joint] is not None else {"significant": True}
             if not t["significant"]:
-                r[1]["significant"] = False
-                r[1]["explained_by_periodic_residual"] = True
+                set_aside(r, t, "periodic_residual")
                 periodic_led.add(ext.joint)
-                away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "periodic_residual",
-                             **{k: v for k, v in t.items() if k != "significant"}})
                 continue
         if not ext.shared and ext.effect != "time_periodic_disturbance":
             # a disturbance in the model dithers the Coulomb friction of its joint (competition.dither_nuisance)
@@ -721,10 +720,7 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
                 t = comp.survives_dither(prep, model, fit, ext, alpha, min_gain, nuisance=dither[ext.joint],
                                          solve=_model_solver(model, ext.joint))
                 if not t["significant"]:
-                    r[1]["significant"] = False
-                    r[1]["explained_by_dither"] = True
-                    away.append({"effect": ext.effect, "joint": int(ext.joint), "explained_by": "dither",
-                                 **{k: v for k, v in t.items() if k != "significant"}})
+                    set_aside(r, t, "dither")
                     continue
         if ext.effect in comp.POSITION_LAWS and not ext.shared:
             if ext.joint not in speed_nuisance:
