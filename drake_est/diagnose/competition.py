@@ -365,6 +365,76 @@ def survives_window_weights(prep, model, fit, ext, alpha: float, min_gain: float
     return t
 
 
+#: laws of the speed tested by :func:`survives_both_speed_changes`: a friction excess at low speed (Sec. 9.1)
+SIDE_LAWS = ("stribeck",)
+#: :func:`survives_both_speed_changes` applies when the rows speeding up and those slowing down each hold at least
+#: this many training and held-out rows
+SIDE_MIN_ROWS = 20
+
+
+def speeding_up(prep, j) -> np.ndarray:
+    """Over the used rows of joint ``j``: whether the joint speeds up there (a qd > 0; on the way out of a
+    standstill or a reversal) rather than slows down (a qd <= 0; on the way into one)."""
+    jd = prep.joints[j]
+    return (jd.a[jd.rows] * jd.v[jd.rows]) > 0
+
+
+def survives_both_speed_changes(prep, model, fit, ext, alpha: float, min_gain: float, solve=None, curve=None) -> dict:
+    """Held-out F-test of a friction law of the speed (:data:`SIDE_LAWS`) on the rows where its joint slows down: the
+    law's curve there (zero elsewhere) added to the model with a scale of its own.  A friction curve F(|qd|)
+    (Sec. 9.1) is a law of the sliding regime: an axis that slides into a stop or a reversal passes the low speeds
+    sliding, and the law must show there.  The samples leaving a standstill or a reversal are no evidence of it on
+    their own: breakaway, presliding, or the nominal model's error where the Coulomb sign changes within the
+    derivative window can leave an excess there that no steady law describes (loop spec 7981, a null log at
+    1000 Hz: a Stribeck hump at 0.025 rad/s, held-out RMSE 2.1 % lower, with 140 % of that gain in the slow samples
+    within 0.1 s after a reversal, while the slow samples slowing down into a stop lose by it).  The reverse is not
+    asked: planted laws in closed loop often show where the axis slows down and not where it speeds up (loop specs
+    7378, 1438, 2563).
+
+    ``curve``: the law's fitted curve at the used rows (its columns times its coefficients in the fit with it; one
+    column, whatever the shape: a basis law's columns on one side extrapolate where that side has few slow samples);
+    default the columns' least-squares fit to the model's residual on the training rows.  The rows speeding up keep
+    their part of the curve at its fitted scale, taken off the torque (an offset): not a scale of their own (loop
+    spec 5027: the curve is small there, 1 % of its mass, and a scale of their own, fitted on the training rows,
+    came out at 34 and raised the held-out error fivefold), and not left out (a large law left out on one side biases
+    the nominal fit: loop spec 7510 then gained a position friction).  The test needs
+    p < ``alpha``, a positive score and a positive scale (training fit), no minimum gain (the law's gain is shared by
+    the two sides): an excess only where the axis speeds up biases the nominal Coulomb and viscous fit, and the rows
+    slowing down then take the curve with a negative scale.  Reports the same test on the rows speeding up too;
+    ``{"significant": True, "skipped": ...}`` when it does not apply (another effect, or a side with under
+    :data:`SIDE_MIN_ROWS` training or held-out rows)."""
+    from drake_est.diagnose.nominal import nominal_names
+    if ext.effect not in SIDE_LAWS or ext.shared:
+        return {"significant": True, "skipped": "not a friction law of the speed"}
+    j = ext.joint
+    jd = prep.joints[j]
+    C = ext.cols[j]
+    up = speeding_up(prep, j)
+    for side in (up, ~up):
+        if min(int(np.sum(side & jd.train)), int(np.sum(side & jd.val))) < SIDE_MIN_ROWS:
+            return {"significant": True, "skipped": "too few rows speeding up or slowing down"}
+    if curve is None:
+        tr = jd.train
+        c = np.linalg.lstsq(C[tr], (jd.y - fit.pred[j])[tr], rcond=None)[0]
+        curve = C @ c
+    g = np.asarray(curve, float)
+    none = np.zeros((g.size, 0))
+    out = {}
+    for name, side in (("slowing_down", ~up), ("speeding_up", up)):
+        # the other side's part of the law at its fitted scale, taken off the torque (an offset, no coefficient)
+        other = np.where(side, 0.0, g)
+        gs = np.where(side, g, 0.0)[:, None]
+        t = _partial_test(prep, model, j, none, gs, alpha, 0.0, solve, offset=other)
+        # the side's own scale of the law (1: the law as fitted on both sides), from the same training fit
+        A1 = np.hstack([model.design_with_shared(j), gs])
+        y = jd.y - other
+        scale = float((solve or _lstsq)(A1[jd.train], y[jd.train], len(nominal_names(prep.robot_kind)))[-1])
+        out[name] = {**_brief(t), "scale": scale, "significant": bool(t["significant"] and scale > 0)}
+    td = out["slowing_down"]
+    return {**td, "significant": td["significant"], "slowing_down": out["slowing_down"],
+            "speeding_up": out["speeding_up"]}
+
+
 def survives_speed_law(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None) -> dict:
     """Partial held-out F-test of a law in time (:data:`TIME_LAWS`) given a free friction curve of its joint
     (:func:`speed_law_nuisance`; module docstring); ``{"significant": True, "skipped": ...}`` when it does not
@@ -454,10 +524,11 @@ def _brief(t) -> dict:
     return {k: t[k] for k in ("p_value", "rmse_reduction", "score")}
 
 
-def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None, weights=None) -> dict:
+def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None, weights=None, offset=None) -> dict:
     """Held-out partial F-test of the columns ``C`` of joint ``j`` given the model and the nuisance columns ``N``
     (fitted on the training rows, compared on the validation rows of the joint); with ``weights`` (one per used row)
-    weighted least squares and weighted held-out sums of squares."""
+    weighted least squares and weighted held-out sums of squares; with ``offset`` (one per used row) a known part of
+    the torque taken off it first."""
     from drake_est.diagnose.nominal import nominal_names
     solve = solve or _lstsq
     n_nominal = len(nominal_names(prep.robot_kind))
@@ -465,7 +536,7 @@ def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None, weights=Non
     X = model.design_with_shared(j)
     A0 = np.hstack([X, N])
     A1 = np.hstack([A0, C])
-    y = jd.y
+    y = jd.y if offset is None else jd.y - np.asarray(offset, float)
     if weights is not None:
         sw = np.sqrt(np.asarray(weights, float))
         A0, A1, y = A0 * sw[:, None], A1 * sw[:, None], y * sw

@@ -665,9 +665,10 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
     misfit of the friction curve (:func:`~drake_est.diagnose.competition.survives_speed_law`), nor a change in time
     that the windows with bursts of misfit decide (:func:`~drake_est.diagnose.competition.survives_window_weights`),
     nor one that a disturbance's dither of the Coulomb friction explains
-    (:func:`~drake_est.diagnose.competition.survives_dither`); (None, [...]) when none is left.  Also returns the
-    candidates set aside that way, with their partial tests (``explained_by``: ``"periodic_residual"``,
-    ``"speed_law"``, ``"uneven_residual"`` or ``"dither"``)."""
+    (:func:`~drake_est.diagnose.competition.survives_dither`), nor a law of the speed that the rows where its joint
+    slows down do not show (:func:`~drake_est.diagnose.competition.survives_both_speed_changes`); (None, [...]) when
+    none is left.  Also returns the candidates set aside that way, with their partial tests (``explained_by``:
+    ``"periodic_residual"``, ``"speed_law"``, ``"uneven_residual"``, ``"dither"`` or ``"one_speed_change"``)."""
     sig = sorted(sig, key=lambda r: -r[1]["score"])
     away, nuisance, speed_nuisance, dither = [], {}, {}, {}
 
@@ -722,6 +723,14 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
                 if not t["significant"]:
                     set_aside(r, t, "dither")
                     continue
+        if ext.effect in comp.SIDE_LAWS and not ext.shared:
+            j = ext.joint
+            t = comp.survives_both_speed_changes(prep, model, fit, ext, alpha, min_gain,
+                                                 solve=_model_solver(model, j),
+                                                 curve=ext.cols[j] @ r[3].coef_slices(r[2], j)[ext.effect])
+            if not t["significant"]:
+                set_aside(r, t, "one_speed_change")
+                continue
         if ext.effect in comp.POSITION_LAWS and not ext.shared:
             if ext.joint not in speed_nuisance:
                 speed_nuisance[ext.joint] = comp.speed_law_nuisance(prep, ext.joint)

@@ -379,6 +379,12 @@ def markdown(d: dict) -> str:
                              "with bursts of misfit (held-out F-test weighted by each window's residual level: "
                              f"p = {a['p_value']:.3g}, RMSE reduction {100 * a['rmse_reduction']:.2g} %).")
                     continue
+                if a.get("explained_by") == "one_speed_change":
+                    L.append(f"Set aside: `{a['effect']}` (joint {a['joint']}) holds only where the joint speeds up out "
+                             "of a standstill or a reversal: a transient there (breakaway, presliding), not a law of "
+                             "the sliding speed (its curve on the samples slowing down, with a scale of its own: "
+                             f"scale {a.get('scale', float('nan')):.3g}, held-out F-test p = {a['p_value']:.3g}).")
+                    continue
                 if a.get("explained_by") == "speed_law":
                     L.append(f"Set aside: `{a['effect']}` (joint {a['joint']}) only absorbed a misfit of the friction "
                              f"curve (partial held-out F-test given a free friction curve of each direction: "
@@ -471,6 +477,7 @@ REJECTION_REASONS = (
     ("explained_by_uneven_residual", "it won only through the time windows with bursts of misfit"),
     ("explained_by_periodic_residual", "the periodic residual explains it"),
     ("explained_by_dither", "a disturbance's dither of the Coulomb friction explains it"),
+    ("explained_by_one_speed_change", "only the samples speeding up out of a standstill or a reversal show it"),
 )
 
 

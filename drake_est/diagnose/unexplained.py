@@ -987,6 +987,9 @@ def next_experiments(prep, steps, duration, rejected=()) -> list:
                                      f"{lo_sel:.3g} per s (log spaced), 10 s each, both directions"}
                 _add_selection_note(exp, jd)
                 out.append(exp)
+        one_way = _one_direction_entry(jd, named)
+        if one_way is not None:
+            out.append(one_way)
         # one speed level: the same test as the competition's (competition.speed_level_ratio)
         if speed_level_ratio(jd) < ONE_SPEED_RATIO and not any(e.get("joint") == j and "ripple" in e.get("experiment", "") for e in out):
             out.append({"reason": "one speed only: position-periodic and time-periodic cannot be told apart",
@@ -1002,6 +1005,43 @@ def next_experiments(prep, steps, duration, rejected=()) -> list:
                     "duration_s": THERMAL_MIN_DURATION_S,
                     "experiment": f"{THERMAL_MIN_DURATION_S / 60:.0f} min of continuous motion from a cold start"})
     return out
+
+
+def _one_direction_entry(jd, named) -> dict | None:
+    """The experiment for an asymmetric Coulomb level that the log cannot test: the selected training samples (9.9)
+    hold too few in one direction (:data:`~drake_est.diagnose.detectors.ASYM_MIN_SHARE`, the rule that makes the
+    level a candidate), typically because the moves in that direction accelerate or decelerate throughout (the
+    selection keeps steady speeds only).  Asks for steady passes in that direction at the speeds the other one was
+    seen at.  None when the level is testable or already named."""
+    from drake_est.diagnose.detectors import ASYM_MIN_SHARE
+    if "asymmetric_coulomb" in named:
+        return None
+    v = jd.v[jd.rows]
+    vt = v[jd.train]
+    n_tr, n_neg = int(vt.size), int(np.sum(vt < 0))
+    if not n_tr or min(n_neg, n_tr - n_neg) >= max(20, ASYM_MIN_SHARE * n_tr):
+        return None
+    rare_neg = n_neg < n_tr - n_neg
+    rare, common = ("negative", "positive") if rare_neg else ("positive", "negative")
+    thr = jd.counts.get("thresholds") or {}
+    v_min, a_max = float(thr.get("v_min", 0.0)), float(thr.get("a_max", np.inf))
+    moving = ((jd.v < 0) if rare_neg else (jd.v > 0)) & (np.abs(jd.v) > v_min)
+    moving_rare, changing = int(np.sum(moving)), int(np.sum(moving & (np.abs(jd.a) > a_max)))
+    sp = np.abs(v[(v > 0) if rare_neg else (v < 0)])
+    lo, hi = (float(np.quantile(sp, 0.25)), float(np.quantile(sp, 0.75))) if sp.size else (0.0, 0.0)
+    qa, qb = float(np.min(jd.q)), float(np.max(jd.q))
+    j = int(jd.joint)
+    return {"reason": (f"asymmetric_coulomb untestable: joint {j} holds {min(n_neg, n_tr - n_neg)} of its {n_tr} "
+                       f"selected training samples in the {rare} direction ({changing} of the {moving_rare} samples "
+                       "moving that way accelerate or slow down, and the data selection (9.9) keeps steady speeds), "
+                       "so a friction level of that direction cannot be told from the common Coulomb level"),
+            "joint": j, "direction": rare, "selected_training_samples": [min(n_neg, n_tr - n_neg), n_tr],
+            "moving_samples_in_that_direction": moving_rare, "accelerating_samples_in_that_direction": changing,
+            "speeds": [lo, hi], "position_range_covered": [qa, qb],
+            "experiment": (f"constant-speed passes of joint {j} in the {rare} direction at about {lo:.3g} to {hi:.3g} "
+                           f"per s (the speeds of its {common} passes in this log) over the same positions "
+                           f"({qa:.3g} to {qb:.3g}), at least a few seconds at steady speed each: a Coulomb level that "
+                           "differs by direction then shows as an offset between the two directions")}
 
 
 #: a held-out direction share, median speed or position range of the stretches that hold a candidate's gain is
