@@ -82,14 +82,24 @@ def _sgn(v):
 # ----------------------------------------------------------------------------- detectors
 
 
+def training_directions(jd) -> tuple:
+    """(samples moving in the negative direction, all samples) among the selected training rows of ``jd``."""
+    return int(np.sum(jd.v[jd.rows][jd.train] < 0)), int(jd.train.sum())
+
+
+def asymmetric_testable(jd) -> bool:
+    """Whether each direction holds enough of the selected training samples (:data:`ASYM_MIN_SHARE`, at least 20)
+    for a direction-dependent Coulomb level: a few reversals inside a stick-slip of a one-direction sweep (about 1 %
+    of the ODrive cogging samples) are not motion in both directions."""
+    n_neg, n_tr = training_directions(jd)
+    return min(n_neg, n_tr - n_neg) >= max(20, ASYM_MIN_SHARE * n_tr)
+
+
 def asymmetric(jd, r):
-    c = (jd.v[jd.rows] < 0).astype(float)[:, None]
-    n_neg = int(np.sum(jd.v[jd.rows][jd.train] < 0))
-    n_tr = int(jd.train.sum())
-    # a direction-dependent Coulomb level needs real motion in both directions: a few reversals inside a
-    # stick-slip of a one-direction sweep (about 1 % of the ODrive cogging samples) are not that
-    if min(n_neg, n_tr - n_neg) < max(20, ASYM_MIN_SHARE * n_tr):
+    if not asymmetric_testable(jd):
         return None
+    c = (jd.v[jd.rows] < 0).astype(float)[:, None]
+    n_neg, _ = training_directions(jd)
     return Extension("asymmetric_coulomb", jd.joint, {jd.joint: c}, ["dkc_neg"], {"effect": "asymmetric_coulomb"},
                      {"negative_velocity_samples": n_neg})
 

@@ -1009,18 +1009,15 @@ def next_experiments(prep, steps, duration, rejected=()) -> list:
 
 def _one_direction_entry(jd, named) -> dict | None:
     """The experiment for an asymmetric Coulomb level that the log cannot test: the selected training samples (9.9)
-    hold too few in one direction (:data:`~drake_est.diagnose.detectors.ASYM_MIN_SHARE`, the rule that makes the
-    level a candidate), typically because the moves in that direction accelerate or decelerate throughout (the
+    hold too few in one direction (:func:`~drake_est.diagnose.detectors.asymmetric_testable`, the rule that makes
+    the level a candidate), typically because the moves in that direction accelerate or decelerate throughout (the
     selection keeps steady speeds only).  Asks for steady passes in that direction at the speeds the other one was
     seen at.  None when the level is testable or already named."""
-    from drake_est.diagnose.detectors import ASYM_MIN_SHARE
-    if "asymmetric_coulomb" in named:
+    from drake_est.diagnose.detectors import asymmetric_testable, training_directions
+    if "asymmetric_coulomb" in named or not jd.train.any() or asymmetric_testable(jd):
         return None
     v = jd.v[jd.rows]
-    vt = v[jd.train]
-    n_tr, n_neg = int(vt.size), int(np.sum(vt < 0))
-    if not n_tr or min(n_neg, n_tr - n_neg) >= max(20, ASYM_MIN_SHARE * n_tr):
-        return None
+    n_neg, n_tr = training_directions(jd)
     rare_neg = n_neg < n_tr - n_neg
     rare, common = ("negative", "positive") if rare_neg else ("positive", "negative")
     thr = jd.counts.get("thresholds") or {}
