@@ -164,9 +164,10 @@ def _lstsq(A, y, n_unpenalized):
 
 
 def _fit_rss(A, y, train, val, n_unpenalized, solve):
+    """(held-out RSS, coefficients) of ``A`` fitted to ``y`` on the training rows."""
     c = solve(A[train], y[train], n_unpenalized)
     e = y[val] - A[val] @ c
-    return float(e @ e)
+    return float(e @ e), c
 
 
 def periodic_nuisance(prep, model, fit, j):
@@ -403,7 +404,6 @@ def survives_both_speed_changes(prep, model, fit, ext, alpha: float, min_gain: f
     slowing down then take the curve with a negative scale.  Reports the same test on the rows speeding up too;
     ``{"significant": True, "skipped": ...}`` when it does not apply (another effect, or a side with under
     :data:`SIDE_MIN_ROWS` training or held-out rows)."""
-    from drake_est.diagnose.nominal import nominal_names
     if ext.effect not in SIDE_LAWS or ext.shared:
         return {"significant": True, "skipped": "not a friction law of the speed"}
     j = ext.joint
@@ -421,18 +421,13 @@ def survives_both_speed_changes(prep, model, fit, ext, alpha: float, min_gain: f
     none = np.zeros((g.size, 0))
     out = {}
     for name, side in (("slowing_down", ~up), ("speeding_up", up)):
-        # the other side's part of the law at its fitted scale, taken off the torque (an offset, no coefficient)
-        other = np.where(side, 0.0, g)
-        gs = np.where(side, g, 0.0)[:, None]
-        t = _partial_test(prep, model, j, none, gs, alpha, 0.0, solve, offset=other)
-        # the side's own scale of the law (1: the law as fitted on both sides), from the same training fit
-        A1 = np.hstack([model.design_with_shared(j), gs])
-        y = jd.y - other
-        scale = float((solve or _lstsq)(A1[jd.train], y[jd.train], len(nominal_names(prep.robot_kind)))[-1])
+        # the other side's part of the law at its fitted scale taken off the torque (an offset, no coefficient); the
+        # side's own scale of the law (1: the law as fitted on both sides) is the last coefficient of the test's fit
+        t = _partial_test(prep, model, j, none, np.where(side, g, 0.0)[:, None], alpha, 0.0, solve,
+                          offset=np.where(side, 0.0, g), coef=True)
+        scale = float(t["coef"][-1])
         out[name] = {**_brief(t), "scale": scale, "significant": bool(t["significant"] and scale > 0)}
-    td = out["slowing_down"]
-    return {**td, "significant": td["significant"], "slowing_down": out["slowing_down"],
-            "speeding_up": out["speeding_up"]}
+    return {**out["slowing_down"], **out}
 
 
 def survives_speed_law(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None) -> dict:
@@ -524,11 +519,13 @@ def _brief(t) -> dict:
     return {k: t[k] for k in ("p_value", "rmse_reduction", "score")}
 
 
-def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None, weights=None, offset=None) -> dict:
+def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None, weights=None, offset=None,
+                  coef: bool = False) -> dict:
     """Held-out partial F-test of the columns ``C`` of joint ``j`` given the model and the nuisance columns ``N``
     (fitted on the training rows, compared on the validation rows of the joint); with ``weights`` (one per used row)
     weighted least squares and weighted held-out sums of squares; with ``offset`` (one per used row) a known part of
-    the torque taken off it first."""
+    the torque taken off it first; with ``coef`` also the coefficients of the fit with ``C`` (``"coef"``: model,
+    nuisance, then ``C``'s columns)."""
     from drake_est.diagnose.nominal import nominal_names
     solve = solve or _lstsq
     n_nominal = len(nominal_names(prep.robot_kind))
@@ -540,17 +537,20 @@ def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None, weights=Non
     if weights is not None:
         sw = np.sqrt(np.asarray(weights, float))
         A0, A1, y = A0 * sw[:, None], A1 * sw[:, None], y * sw
-    rss0 = _fit_rss(A0, y, jd.train, jd.val, n_nominal, solve)
-    rss1 = _fit_rss(A1, y, jd.train, jd.val, n_nominal, solve)
+    rss0, _ = _fit_rss(A0, y, jd.train, jd.val, n_nominal, solve)
+    rss1, c1 = _fit_rss(A1, y, jd.train, jd.val, n_nominal, solve)
     n = int(jd.val.sum())
     d = C.shape[1]
     F = ((rss0 - rss1) / d) / (rss1 / max(n - d, 1))
     p = float(scipy.stats.f.sf(F, d, max(n - d, 1))) if F > 0 else 1.0
     gain = 1.0 - np.sqrt(rss1 / rss0) if rss0 > 0 else 0.0
     score = float(n * np.log(rss0 / max(rss1, 1e-300)) - 2 * d)
-    return {"F": float(F), "p_value": p, "rmse_reduction": float(gain), "score": score,
-            "nuisance_columns": int(N.shape[1]),
-            "significant": bool(p < alpha and gain >= min_gain and score > 0)}
+    out = {"F": float(F), "p_value": p, "rmse_reduction": float(gain), "score": score,
+           "nuisance_columns": int(N.shape[1]),
+           "significant": bool(p < alpha and gain >= min_gain and score > 0)}
+    if coef:
+        out["coef"] = c1
+    return out
 
 
 #: the held-out blocks of a paired comparison are pooled into at most this many contiguous groups (the
