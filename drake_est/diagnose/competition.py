@@ -28,9 +28,10 @@ Two checks that run before a candidate of :mod:`drake_est.diagnose.core` is acce
 * **A position law that a speed law explains as well.**  Under point-to-point moves each position is
   passed at one speed (and in one direction, between two end points), and a friction level that changes with q,
   or a load that does, fits the misfit of a speed law of another shape or an asymmetric Coulomb level.  A
-  position-dependent friction or load that is not significant given the free friction curve is reported as
-  ambiguous with ``stribeck``, or with ``asymmetric_coulomb`` when one friction level per direction explains a load
-  alone (:func:`position_law_confounded`); it stays in the model.
+  position-dependent friction or load that is not significant given the free friction curve (its knots also spread
+  in log-speed, so that a sparse tail of fast samples is spanned too) is reported as ambiguous with ``stribeck``,
+  or with ``asymmetric_coulomb`` when one friction level per direction explains a load alone
+  (:func:`position_law_confounded`); it stays in the model.
 * **A later finding that a disturbance's dither of the Coulomb friction explains.**  A torque disturbance periodic in
   time shakes the axis: at speeds below the velocity amplitude A it adds, the Coulomb level averages over the
   dither to kc (2/pi) arcsin(qd/A) instead of kc sign(qd) (the describing function of a relay under a sinusoid),
@@ -210,11 +211,38 @@ def periodic_nuisance(prep, model, fit, j):
     return np.hstack(cols) if cols else None
 
 
-def speed_law_nuisance(prep, j, knots: int = SPEED_LAW_KNOTS):
+#: a knot spread in log-speed joins the free friction curve (:func:`speed_law_nuisance`) only when each of the two
+#: intervals it makes with its neighbours holds at least this many training samples of its direction
+SPREAD_KNOT_MIN_SAMPLES = 20
+
+
+def _supported_knots(a, x, extra) -> np.ndarray:
+    """The sorted knots ``x`` with each of ``extra`` added in turn where both intervals it makes with its neighbours
+    hold at least :data:`SPREAD_KNOT_MIN_SAMPLES` of the speeds ``a`` (a hat function over a few samples is fitted to
+    them alone and extrapolates on the held-out rows: loop spec 56, a load at 1000 Hz whose partial test given the
+    curve then raised the held-out error by 16 %)."""
+    x = np.asarray(x, float)
+    for e in extra:
+        k = int(np.searchsorted(x, e))
+        if k == 0 or k == x.size or e == x[k - 1] or e == x[k]:
+            continue
+        lo = np.sum((a >= x[k - 1]) & (a < e))
+        hi = np.sum((a >= e) & (a <= x[k]))
+        if min(lo, hi) >= SPREAD_KNOT_MIN_SAMPLES:
+            x = np.insert(x, k, e)
+    return x
+
+
+def speed_law_nuisance(prep, j, knots: int = SPEED_LAW_KNOTS, spread: bool = False):
     """Columns (at the joint's used rows) of a free friction curve f(|qd|) for each direction of motion: hat
     functions of |qd| with ``knots`` knots at the quantiles of the training speeds of that direction (every
     monotone or non-monotone speed law, Stribeck of any shape, a viscous term held at its bound, is in their
-    span up to the knot spacing).  None when a direction has too few training samples for it."""
+    span up to the knot spacing).  With ``spread`` also ``knots`` knots spread evenly in log-speed between that
+    direction's smallest and largest training speed, each where it leaves at least :data:`SPREAD_KNOT_MIN_SAMPLES`
+    training samples on both sides (:func:`_supported_knots`): a sparse tail of faster samples otherwise lies
+    between two quantile knots, and the curve's shape there escapes the span (loop spec 7975: six sevenths of one
+    direction's samples below 0.045 rad/s, the last quantile knots at 0.045 and 0.32 rad/s, and a position load
+    fitted the curve's shape between them).  None when a direction has too few training samples for it."""
     jd = prep.joints[j]
     v = jd.v[jd.rows]
     cols = []
@@ -223,6 +251,8 @@ def speed_law_nuisance(prep, j, knots: int = SPEED_LAW_KNOTS):
         if a.size < 4 * knots:
             continue
         x = np.unique(np.quantile(a, np.linspace(0.0, 1.0, knots)))
+        if spread and x[0] > 0:
+            x = _supported_knots(a, x, np.geomspace(x[0], x[-1], knots)[1:-1])
         if x.size < 3:
             continue
         av = np.clip(np.abs(v), x[0], x[-1])
@@ -454,10 +484,13 @@ def survives_speed_law(prep, model, fit, ext, alpha: float, min_gain: float, nui
 
 def position_law_confounded(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None):
     """A position law (:data:`POSITION_LAWS`: a friction level that changes with q, or a load) that a free friction
-    curve of its joint (:func:`speed_law_nuisance`) explains as well: the partial held-out F-test of its columns
-    given the curve is not significant.  When each position is passed at one speed (point-to-point moves), a
-    friction level that changes with q and one that changes with |qd| give the same residual, e.g. the misfit of a
-    Stribeck law of another shape; when each position is also passed in one direction, so do a load and a
+    curve of its joint explains as well: the partial held-out F-test of its columns given the curve is not
+    significant.  The curve (:func:`speed_law_nuisance` with ``spread``) has knots at the training speeds'
+    quantiles and spread in log-speed, so that its span holds a speed law's shape over the whole speed range, not
+    only where most samples lie; a law in time (:func:`survives_speed_law`), which the curve sets aside rather than
+    marks ambiguous, keeps the quantile knots alone.  When each position is passed at one speed (point-to-point
+    moves), a friction level that changes with q and one that changes with |qd| give the same residual, e.g. the
+    misfit of a Stribeck law of another shape; when each position is also passed in one direction, so do a load and a
     direction-dependent level (an asymmetric Coulomb friction; loop specs 2453 and 2662 at 10 Hz, where a load
     was named for an asymmetric level and for a Lorentzian Stribeck law).  Unlike a law in time the finding is not
     set aside (it may be the step that lets a later, smaller finding be seen); it is reported as ambiguous with
@@ -467,7 +500,7 @@ def position_law_confounded(prep, model, fit, ext, alpha: float, min_gain: float
     rival."""
     if ext.effect not in POSITION_LAWS or ext.shared:
         return None
-    N = speed_law_nuisance(prep, ext.joint) if nuisance is None else nuisance
+    N = speed_law_nuisance(prep, ext.joint, spread=True) if nuisance is None else nuisance
     if N is None:
         return None
     t = _partial_test(prep, model, ext.joint, N, ext.cols[ext.joint], alpha, min_gain, solve)

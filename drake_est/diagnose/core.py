@@ -732,11 +732,12 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
                 set_aside(r, t, "one_speed_change")
                 continue
         if ext.effect in comp.POSITION_LAWS and not ext.shared:
-            if ext.joint not in speed_nuisance:
-                speed_nuisance[ext.joint] = comp.speed_law_nuisance(prep, ext.joint)
+            key = (ext.joint, "spread")
+            if key not in speed_nuisance:
+                speed_nuisance[key] = comp.speed_law_nuisance(prep, ext.joint, spread=True)
             c = comp.position_law_confounded(prep, model, fit, ext, alpha, min_gain,
-                                             nuisance=speed_nuisance[ext.joint], solve=_model_solver(model, ext.joint)) \
-                if speed_nuisance[ext.joint] is not None else None
+                                             nuisance=speed_nuisance[key], solve=_model_solver(model, ext.joint)) \
+                if speed_nuisance[key] is not None else None
             if c is not None:
                 r[1]["confounded_with_speed"] = c
         return r, away
