@@ -57,3 +57,32 @@ def test_loop_case_7975_load_is_not_named_for_the_sparse_speeds(ulps):
     c = load[0]["competition"]
     assert c["confounded_with_speed"] and c["position_vs_speed"]
     assert "free friction curve" in c["reason"]
+
+
+def test_a_gap_in_the_speeds_gets_a_knot_at_each_edge():
+    n = comp.SPREAD_KNOT_MIN_SAMPLES
+    a = np.concatenate([np.linspace(0.014, 0.029, 200), np.full(n, 0.347)])
+    x = np.array([0.014, 0.02, 0.025, 0.029, 0.1, 0.347])
+    # 0.1 lies inside the gap (0.029 to 0.347): dropped; both edges are knots
+    np.testing.assert_array_equal(comp._gap_knots(a, x), [0.014, 0.02, 0.025, 0.029, 0.347])
+    # one sample short beyond the gap: no gap knots
+    np.testing.assert_array_equal(comp._gap_knots(a[:-1], x), x)
+    # consecutive speeds within the ratio: no gap
+    b = np.geomspace(0.01, 1.0, 400)
+    assert np.all(b[1:] / b[:-1] < comp.SPEED_GAP_RATIO)
+    np.testing.assert_array_equal(comp._gap_knots(b, x), x)
+
+
+def test_loop_case_8522_position_friction_is_ambiguous_with_stribeck():
+    """Closed-loop spec 8522 (100 Hz, quantized torque, a load beside a Gaussian Stribeck law): one direction's fast
+    samples all move at 0.347 rad/s, none between 0.029 rad/s and that; a position friction beside the load fitted
+    the friction level at the fast speed (2.5 % lower held-out RMSE given a curve linear across the gap) and was
+    named.  With a knot at each edge of the gap it adds nothing, and is ambiguous with Stribeck (planted)."""
+    from drake_est.diagnose import diagnose
+    log, truth = bench_module("bench_diagnose_testbench").loop_log(8522)
+    assert set(truth["effects"]) == {"position_dependent_load", "stribeck"}
+    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    got = {f["effect"]: f for f in d["findings"]}
+    assert set(got) == {"position_dependent_friction", "position_dependent_load"}
+    assert got["position_dependent_friction"]["ambiguous_between"] == ["position_dependent_friction", "stribeck"]
+    assert got["position_dependent_load"].get("status") == "named"

@@ -233,6 +233,29 @@ def _supported_knots(a, x, extra) -> np.ndarray:
     return x
 
 
+#: a gap in a direction's training speeds: two consecutive speeds (sorted) more than this factor apart
+SPEED_GAP_RATIO = 1.5
+
+
+def _gap_knots(a, x) -> np.ndarray:
+    """The sorted knots ``x`` with a knot at both edges of every gap in the speeds ``a`` (:data:`SPEED_GAP_RATIO`)
+    that has at least :data:`SPREAD_KNOT_MIN_SAMPLES` speeds at or below its lower edge and as many at or above its
+    upper edge; knots strictly inside such a gap are dropped.  No sample says what the friction curve does in a gap,
+    and a curve linear across it ties the speeds beyond it to the slope of those below it (loop spec 8522: one
+    direction's fast samples all at 0.347 rad/s, none from 0.029 rad/s up, and a position friction beside a load
+    fitted the friction level at the fast speed)."""
+    s = np.sort(np.asarray(a, float))
+    x = np.asarray(x, float)
+    if s.size < 2 * SPREAD_KNOT_MIN_SAMPLES:
+        return x
+    r = s[1:] / np.maximum(s[:-1], 1e-300)
+    for i in np.flatnonzero(r > SPEED_GAP_RATIO):
+        lo, hi = s[i], s[i + 1]
+        if i + 1 >= SPREAD_KNOT_MIN_SAMPLES and s.size - (i + 1) >= SPREAD_KNOT_MIN_SAMPLES:
+            x = np.unique(np.concatenate([x[(x < lo) | (x > hi)], [lo, hi]]))
+    return x
+
+
 def speed_law_nuisance(prep, j, knots: int = SPEED_LAW_KNOTS, spread: bool = False):
     """Columns (at the joint's used rows) of a free friction curve f(|qd|) for each direction of motion: hat
     functions of |qd| with ``knots`` knots at the quantiles of the training speeds of that direction (every
@@ -242,7 +265,8 @@ def speed_law_nuisance(prep, j, knots: int = SPEED_LAW_KNOTS, spread: bool = Fal
     training samples on both sides (:func:`_supported_knots`): a sparse tail of faster samples otherwise lies
     between two quantile knots, and the curve's shape there escapes the span (loop spec 7975: six sevenths of one
     direction's samples below 0.045 rad/s, the last quantile knots at 0.045 and 0.32 rad/s, and a position load
-    fitted the curve's shape between them).  None when a direction has too few training samples for it."""
+    fitted the curve's shape between them), and knots at both edges of every gap in the speeds (:func:`_gap_knots`).
+    None when a direction has too few training samples for it."""
     jd = prep.joints[j]
     v = jd.v[jd.rows]
     cols = []
@@ -252,7 +276,7 @@ def speed_law_nuisance(prep, j, knots: int = SPEED_LAW_KNOTS, spread: bool = Fal
             continue
         x = np.unique(np.quantile(a, np.linspace(0.0, 1.0, knots)))
         if spread and x[0] > 0:
-            x = _supported_knots(a, x, np.geomspace(x[0], x[-1], knots)[1:-1])
+            x = _gap_knots(a, _supported_knots(a, x, np.geomspace(x[0], x[-1], knots)[1:-1]))
         if x.size < 3:
             continue
         av = np.clip(np.abs(v), x[0], x[-1])
