@@ -732,12 +732,10 @@ def _best_surviving(prep, model, fit, sig, alpha, min_gain):
                 set_aside(r, t, "one_speed_change")
                 continue
         if ext.effect in comp.POSITION_LAWS and not ext.shared:
-            key = (ext.joint, "spread")
-            if key not in speed_nuisance:
-                speed_nuisance[key] = comp.speed_law_nuisance(prep, ext.joint, spread=True)
+            # the round's winner: its own curve (knots spread in log-speed), built once here, none shared with the
+            # laws in time above
             c = comp.position_law_confounded(prep, model, fit, ext, alpha, min_gain,
-                                             nuisance=speed_nuisance[key], solve=_model_solver(model, ext.joint)) \
-                if speed_nuisance[key] is not None else None
+                                             solve=_model_solver(model, ext.joint))
             if c is not None:
                 r[1]["confounded_with_speed"] = c
         return r, away
