@@ -15,7 +15,9 @@ Two checks that run before a candidate of :mod:`drake_est.diagnose.core` is acce
   can win a round merely by absorbing part of it.  Such a candidate must stay significant on the held-out
   data when the periodic structure of the current residual (:func:`periodic_nuisance`: the strongest
   sinusoids in time and the ripple components in position, found on the training part) is in the model
-  as well: a partial F-test of the candidate given the periodic alternative.
+  as well: a partial F-test of the candidate given the periodic alternative.  For a law in time
+  (:data:`FLOORED_LAWS`: a step or a drift) the nuisance's sinusoids have at least :data:`NUISANCE_MIN_PERIODS`
+  periods in the log, since a slower sinusoid fits a step or a drift about as well as they do.
 * **A drift, a change or a disturbance in time that only absorbs a speed-law misfit.**  An energy drift or an
   abrupt change claims that the friction changed *in time*, a time-periodic disturbance that a force recurs
   in time; when the fitted friction curve has the wrong shape (a Stribeck law of another form, a viscous term
@@ -69,6 +71,25 @@ ONE_SPEED_RATIO = 1.5
 CONFOUNDABLE = ("stribeck", "energy_dependent_friction", "abrupt_change")
 #: sinusoids in time in the periodic nuisance of :func:`periodic_nuisance`
 NUISANCE_SINUSOIDS = 3
+#: fewest periods in the log of a sinusoid of the periodic nuisance for any law but those of :data:`FLOORED_LAWS`
+#: (the lowest frequency the time-periodic disturbance itself is scanned from)
+NUISANCE_PERIODS = 4.0
+#: laws in time (a step, a drift) whose periodic nuisance holds only sinusoids of at least
+#: :data:`NUISANCE_MIN_PERIODS` periods in the log (thirty-first round): a slower sinusoid fits a step or a drift
+#: about as well as the step or drift does, so the nuisance set aside the very law it was to test (loop spec 8484: a
+#: third-size abrupt change set aside by a sinusoid of 4.2 periods, and a position friction named in its place).
+#: Every other law keeps the 4-period nuisance: a speed law must still beat a slow disturbance (the several-log
+#: test of a 45 s disturbance, 6 periods in the log, against Stribeck; the thirtieth round floored every law)
+FLOORED_LAWS = ("abrupt_change", "energy_dependent_friction")
+#: fewest periods in the log of a sinusoid of the periodic nuisance of a law of :data:`FLOORED_LAWS`
+NUISANCE_MIN_PERIODS = 10.0
+
+
+def nuisance_periods(effect: str) -> float:
+    """Fewest periods in the log of a sinusoid of the periodic nuisance that a candidate of ``effect`` is tested
+    against (:data:`NUISANCE_MIN_PERIODS` for the laws in time of :data:`FLOORED_LAWS`, else
+    :data:`NUISANCE_PERIODS`)."""
+    return NUISANCE_MIN_PERIODS if effect in FLOORED_LAWS else NUISANCE_PERIODS
 #: laws in time that must beat a free friction curve (:func:`speed_law_nuisance`); the time-periodic disturbance
 #: since the tenth round (loop spec 2032: a 0.17 Hz "disturbance" that followed a Lorentz Stribeck law's misfit
 #: under repeated moves)
@@ -171,9 +192,10 @@ def _fit_rss(A, y, train, val, n_unpenalized, solve):
     return float(e @ e), c
 
 
-def periodic_nuisance(prep, model, fit, j):
+def periodic_nuisance(prep, model, fit, j, min_periods: float = NUISANCE_PERIODS):
     """Columns (at the joint's used rows) of the periodic structure of the current residual of joint ``j``:
-    up to :data:`NUISANCE_SINUSOIDS` sinusoids in time (each found on the training residual left by the
+    up to :data:`NUISANCE_SINUSOIDS` sinusoids in time of at least ``min_periods`` periods in the log
+    (:func:`nuisance_periods`; each found on the training residual left by the
     previous ones, :func:`~drake_est.diagnose.detectors.time_periodic`) and the ripple components in position
     (:func:`~drake_est.diagnose.detectors.ripple`).  Each component joins only when it lowers the held-out error
     of the model (fitted on the training rows): the scan sees the training blocks only, and their alternation
@@ -197,7 +219,7 @@ def periodic_nuisance(prep, model, fit, j):
     rk = r
     for _ in range(NUISANCE_SINUSOIDS):
         # motion-locked sinusoids included: the nuisance stands for any periodic structure of the residual
-        e = det.time_periodic(jd, rk, skip_motion_lines=False)
+        e = det.time_periodic(jd, rk, skip_motion_lines=False, min_periods=min_periods)
         if e is None:
             break
         rss_val, res = fitted(np.hstack([X] + cols + [e.cols[j]]))
@@ -561,11 +583,13 @@ def survives_periodic(prep, model, fit, ext, alpha: float, min_gain: float, nuis
     relative ridge on the extension columns, Eq. (6.8)); default plain least squares.  ``any_law``: test any
     candidate that is not itself periodic (:data:`PERIODIC_PAIR`), not only the smooth speed/time laws of
     :data:`CONFOUNDABLE` (the search asks it of every candidate ranked below one the periodic residual explained).
+    ``nuisance``: the columns of :func:`periodic_nuisance` for ``ext``'s joint and floor
+    (:func:`nuisance_periods` of its law); default made here.
     Returns the test dict (``significant``: the candidate still explains held-out variance beyond the
     periodic alternative); ``{"significant": True, "skipped": ...}`` when it does not apply."""
     if not periodic_test_applies(ext, any_law):
         return {"significant": True, "skipped": "not a smooth speed/time law"}
-    N = periodic_nuisance(prep, model, fit, ext.joint) if nuisance is None else nuisance
+    N = periodic_nuisance(prep, model, fit, ext.joint, nuisance_periods(ext.effect)) if nuisance is None else nuisance
     if N is None:
         return {"significant": True, "skipped": "no periodic structure in the residual"}
     return _partial_test(prep, model, ext.joint, N, ext.cols[ext.joint], alpha, min_gain, solve)

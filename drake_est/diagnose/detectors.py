@@ -730,14 +730,15 @@ def time_periodic_refit(jd, r_p, ext):
     return Extension("time_periodic_disturbance", jd.joint, {jd.joint: C}, names, spec, ev)
 
 
-def time_periodic(jd, r, n_components=1, skip_motion_lines=True):
+def time_periodic(jd, r, n_components=1, skip_motion_lines=True, min_periods: float = 4.0):
     """A torque periodic in *time* (pump, fan, neighbouring machine): the least-squares periodogram of
     the training residual over time (the spectral tools of Ch. 10 with time as the sampling location,
     :func:`~drake_est.spectral.detect.fft_scan`), beyond [sign(qd), qd]; the strongest frequency f [Hz]
     gives columns cos, sin(2 pi f t).  Unlike the motor ripple its frequency does not scale with speed,
     so on logs with several speeds the two are told apart by the held-out comparison.  ``skip_motion_lines``:
     frequencies of the motion's own strong lines are not scanned (:func:`motion_lines_hz`; off where any
-    periodic structure is wanted, e.g. the periodic nuisance of :mod:`~drake_est.diagnose.competition`)."""
+    periodic structure is wanted, e.g. the periodic nuisance of :mod:`~drake_est.diagnose.competition`).
+    ``min_periods``: the lowest frequency scanned, in periods of the training span (4 for the disturbance itself)."""
     from drake_est.errors import DrakeEstError
     from drake_est.spectral.detect import fft_scan
 
@@ -753,8 +754,8 @@ def time_periodic(jd, r, n_components=1, skip_motion_lines=True):
     max_fft = 1 << 20
     f_max = min(0.45 / h, 0.98 * max_fft / (4.0 * T * BINS_PER_PERIOD))
     try:
-        freqs, ess = fft_scan(tt, rt, Phi=np.column_stack([np.ones_like(tt)]), f_max=f_max, f_min=4.0 / T,
-                              max_fft=max_fft)
+        freqs, ess = fft_scan(tt, rt, Phi=np.column_stack([np.ones_like(tt)]), f_max=f_max,
+                              f_min=float(min_periods) / T, max_fft=max_fft)
     except DrakeEstError:
         return None
     if freqs.size == 0:
