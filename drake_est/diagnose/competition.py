@@ -90,6 +90,8 @@ def nuisance_periods(effect: str) -> float:
     against (:data:`NUISANCE_MIN_PERIODS` for the laws in time of :data:`FLOORED_LAWS`, else
     :data:`NUISANCE_PERIODS`)."""
     return NUISANCE_MIN_PERIODS if effect in FLOORED_LAWS else NUISANCE_PERIODS
+
+
 #: laws in time that must beat a free friction curve (:func:`speed_law_nuisance`); the time-periodic disturbance
 #: since the tenth round (loop spec 2032: a 0.17 Hz "disturbance" that followed a Lorentz Stribeck law's misfit
 #: under repeated moves)

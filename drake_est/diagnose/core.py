@@ -1004,8 +1004,9 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
     return None
 
 
-#: the two laws in time that a log often does not separate (an abrupt change, a drift with the dissipated energy)
-TIME_LAW_PAIR = ("abrupt_change", "energy_dependent_friction")
+#: the two laws in time that a log often does not separate (an abrupt change, a drift with the dissipated energy):
+#: the laws whose periodic nuisance is floored, :data:`~drake_est.diagnose.competition.FLOORED_LAWS`
+TIME_LAW_PAIR = comp.FLOORED_LAWS
 
 
 def time_law_alternative(prep, out, max_findings, alpha, min_gain, blocked=frozenset()):
