@@ -465,15 +465,19 @@ def _rerun_kept(effect: str, lane: str | None, sample_rate: float | None = None,
 
 
 def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float | None = None,
-                         results_dir=None) -> dict:
+                         results_dir=None, only: set | None = None) -> dict:
     """The kept logs (every kept row, at ``sample_rate`` only when given; lane ``i/n``) whose preparation
     (:func:`drake_est.diagnose.nominal.prepare`, no diagnosis) records ``count`` > 0 for some joint, e.g.
-    ``beyond_training_speeds``: the logs a change keyed on it can touch.  {"logs": n, "touched": [[family, k,
+    ``beyond_training_speeds``: the logs a change keyed on it can touch.  ``count`` = ``motion_line_gate``: the logs
+    with a joint in :func:`drake_est.diagnose.core.motion_line_gate` (the nominal fit and one candidate, no search).
+    ``only``: {(family, k)}, the logs to prepare (all kept logs when None).  {"logs": n, "touched": [[family, k,
     {joint: count}], ...], "refused": [...]}."""
     from drake_est.diagnose.nominal import prepare
     from drake_est.errors import DataError
     from drake_est.progress import progress
     kept = kept_rows_naming("any", results_dir, sample_rate=sample_rate)
+    if only is not None:
+        kept = {key: v for key, v in kept.items() if (key[0], key[2]) in only}
     i, n = _lane(lane)
     specs = _specs_of(kept)
     # lanes share out logs, not rows (a synth log has a row per robot)
@@ -491,6 +495,14 @@ def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float
                 prep = prepare(log, robot=robot)
             except DataError as e:
                 refused.append([fam, robot, k, str(e)])
+                continue
+            if count == "motion_line_gate":
+                # the joints on which the search offers a time-periodic candidate at a line of the motion (decided
+                # once per diagnosis on the data as first prepared: core.motion_line_gate)
+                from drake_est.diagnose.core import motion_line_gate
+                from drake_est.threads import single_thread_blas
+                with single_thread_blas():
+                    got.update({str(j): 1 for j in motion_line_gate(prep)})
                 continue
             got.update({str(j): int(jd.counts[count]) for j, jd in prep.joints.items() if jd.counts.get(count)})
         if got:
@@ -575,7 +587,8 @@ def main(argv=None):
         print(results_row())
         return None
     if a.kept_with_count:
-        out = kept_logs_with_count(a.kept_with_count, a.lane, a.sample_rate)
+        out = kept_logs_with_count(a.kept_with_count, a.lane, a.sample_rate,
+                                   only=None if a.only is None else read_only_file(a.only))
         if a.only_out:
             with open(a.only_out, "w") as f:
                 f.write("".join(f"{fam} {k}\n" for fam, k, _ in out["touched"]))

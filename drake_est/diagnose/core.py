@@ -381,6 +381,11 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             out.append(det.stribeck(jd, r, fit_inner, falling=j in fit.kv_held))
         if not have("time_periodic_disturbance"):
             out.append(det.time_periodic(jd, r))
+            # the whole scan's peak where it lies at a line of the motion (a slow disturbance under point-to-point
+            # moves), on the joints where the nominal residual shows one (motion_line_gate): held against a free
+            # function of the state in _round
+            if j in prep.meta.get("motion_line_joints", ()):
+                out.append(det.time_periodic_at_motion_line(jd, r))
         if not have("gear_coupling") and len(prep.joints) > 1:
             out.append(det.coupling(jd, r, prep))
         if cache is not None:
@@ -474,7 +479,7 @@ def _competition(ext, tst, results, prep=None) -> dict:
     js = set(ext.cols)
     rivals = [(e, t) for e, t, _, _ in results if e is not ext and e.effect != ext.effect and js & set(e.cols)]
     if not rivals:
-        return _speed_confound({"runner_up": None, "margin": None, "ambiguous": False}, tst)
+        return _time_confound(_speed_confound({"runner_up": None, "margin": None, "ambiguous": False}, tst), tst)
     rivals.sort(key=lambda r: -r[1]["score"])
     e2, t2 = rivals[0]
     margin = float(tst["score"] - t2["score"])
@@ -544,7 +549,7 @@ def _competition(ext, tst, results, prep=None) -> dict:
             name, sep = next(iter(below_min_gain.items()))
             out["reason"] = (f"{name} predicts the held-out data of the round within {100 * sep:.2g} % of the RMSE "
                              f"(< {100 * MIN_GAIN:g} %, the gain every finding must show): not separated")
-    return _speed_confound(out, tst)
+    return _time_confound(_speed_confound(out, tst), tst)
 
 
 #: a rival contains the winner when, with the nominal columns, it reproduces the winner's columns on the training
@@ -629,6 +634,44 @@ def _speed_confound(out, tst) -> dict:
                 "reason": "; ".join([r for r in [out.get("reason")] if r] + [why]), "confounded_with_speed": True})
     if position:
         out["position_vs_speed"] = True
+    return out
+
+
+def _mark_confounded_with_time(prep, model, best, results, alpha, min_gain) -> None:
+    """The round's winner ``best`` on a joint whose time-periodic candidate at a line of the motion a free function of
+    the state explained (``explained_by_state_law`` in ``results``): when the winner adds nothing to that sinusoid
+    either (:func:`~drake_est.diagnose.competition.law_confounded_with_time`), its test gets
+    ``confounded_with_time`` and :func:`_time_confound` reports it ambiguous with the disturbance."""
+    ext, tst = best[0], best[1]
+    if ext.shared or ext.effect in comp.PERIODIC_PAIR:
+        return
+    for e, t, _, _ in results:
+        if t.get("explained_by_state_law") and not e.shared and e.joint == ext.joint:
+            c = comp.law_confounded_with_time(prep, model, ext, e, t["state_law_test"], alpha, min_gain,
+                                              solve=_model_solver(model, ext.joint))
+            if c is not None:
+                tst["confounded_with_time"] = c
+            return
+
+
+def _time_confound(out, tst) -> dict:
+    """A law that adds nothing to a time-periodic candidate at a line of the motion, which in turn a free function of
+    the state explained as well (``tst["confounded_with_time"]``, from
+    :func:`~drake_est.diagnose.competition.law_confounded_with_time`): position, speed and time are confounded in
+    this log, so the finding is also ambiguous with ``time_periodic_disturbance``."""
+    c = tst.get("confounded_with_time")
+    if not c:
+        return out
+    why = (f"state and time are confounded in this log: a disturbance periodic in time at {c['frequency_hz']:.3g} Hz "
+           f"(a line of the motion, {c['at_motion_line_hz']:.3g} Hz) explains the held-out data as well as this law "
+           f"(which adds nothing to it, p = {c['p_value']:.2g}), and a free function of position and speed as well "
+           f"as the disturbance (p = {c['time_periodic_given_state']['p_value']:.2g}), so a disturbance in time is "
+           "not ruled out")
+    was = list(out.get("ambiguous_with") or []) if out.get("ambiguous") else []
+    out.update({"ambiguous": True,
+                "ambiguous_with": was + [e for e in ["time_periodic_disturbance"] if e not in was],
+                "reason": "; ".join([r for r in [out.get("reason")] if r] + [why]), "confounded_with_time": True,
+                "time_periodic_frequency_hz": float(c["frequency_hz"])})
     return out
 
 
@@ -911,38 +954,91 @@ def negative_friction(prep, model, fit, ext, sigma) -> dict | None:
 
 def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, changed=None):
     """One round of candidates on ``model``'s residual: [(ext, test, fit1, model1)], each test with
-    ``significant`` (held-out F-test, gain, score, the quantization guard and the paired held-out block test,
-    :func:`~drake_est.diagnose.competition.paired_block_test` at :data:`PAIRED_ALPHA`)."""
-    results = []
-    for ext in _candidates(prep, model, fit, accepted, cache, changed):
-        m1 = Model(prep, model.exts + [ext])
-        f1 = m1.fit(sigma)
-        tst = _test(prep, fit, f1, ext)
-        tst["significant"] = bool(tst["p_value"] < alpha and tst["rmse_reduction"] >= min_gain and tst["score"] > 0)
-        if tst["significant"] and not _above_quantization(prep, fit, f1, ext):
+    ``significant`` (:func:`_evaluate`)."""
+    state = {}
+    return [_evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state)
+            for ext in _candidates(prep, model, fit, accepted, cache, changed)]
+
+
+def _evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state) -> tuple:
+    """(ext, test, fit1, model1) of one candidate ``ext`` on ``model``'s residual; the test's ``significant``: the
+    held-out F-test, gain, score, the quantization guard, no negative friction, the paired held-out block test
+    (:func:`~drake_est.diagnose.competition.paired_block_test` at :data:`PAIRED_ALPHA`) and, for a time-periodic
+    candidate at a line of the motion, the free function of the state (``state``: the round's nuisance per joint)."""
+    m1 = Model(prep, model.exts + [ext])
+    f1 = m1.fit(sigma)
+    tst = _test(prep, fit, f1, ext)
+    tst["significant"] = bool(tst["p_value"] < alpha and tst["rmse_reduction"] >= min_gain and tst["score"] > 0)
+    if tst["significant"] and not _above_quantization(prep, fit, f1, ext):
+        tst["significant"] = False
+        tst["below_quantization_step"] = True
+    if tst["significant"]:
+        neg = negative_friction(prep, m1, f1, ext, sigma)
+        if neg is not None:
             tst["significant"] = False
-            tst["below_quantization_step"] = True
-        if tst["significant"]:
-            neg = negative_friction(prep, m1, f1, ext, sigma)
-            if neg is not None:
+            tst["negative_friction"] = neg
+    if tst["significant"]:
+        # the F-test counts every held-out sample as independent; a closed-loop residual is correlated over a
+        # move, and a flexible candidate can fit such structure in-sample without predicting the held-out
+        # blocks any better: the gain must also hold across the held-out blocks (paired test)
+        paired = comp.paired_block_test(prep, fit, f1, list(ext.cols))
+        tst["paired_p_value"] = paired["p_value"]
+        if paired["p_value"] >= PAIRED_ALPHA:
+            tst["significant"] = False
+            tst["not_separated_on_held_out_blocks"] = True
+            # where its gain lies when a few stretches hold it (the log does not repeat what would confirm
+            # it: next_experiment says what would); reported, never used to decide
+            where = comp.gain_concentration(prep, fit, f1, list(ext.cols), PAIRED_ALPHA)
+            if where is not None:
+                tst["gain_concentration"] = where
+    if ((tst["significant"] or tst.get("below_quantization_step")) and "at_motion_line_hz" in ext.evidence
+            and not ext.shared):
+        # a time-periodic candidate at a line of the motion must beat a free function of the state (every misfit
+        # of the model's laws of the state repeats at the motion's lines); tested here, not only when it wins its
+        # round, since a rival within the margin makes the winner ambiguous with it -- and a rival held back by the
+        # ADC guard alone is one too (_competition; loop spec 5334: a ripple made ambiguous with such a candidate)
+        solve = _model_solver(model, ext.joint)
+        if ext.joint not in state:
+            state[ext.joint] = comp.state_nuisance(prep, model, ext.joint, solve=solve)
+        N = state[ext.joint]
+        t = comp.survives_state_law(prep, model, fit, ext, alpha, min_gain, solve=solve,
+                                    nuisance=N if N is not None else np.zeros((ext.cols[ext.joint].shape[0], 0)))
+        tst["state_law_test"] = comp._brief(t)
+        if not t["significant"]:
+            tst["significant"] = False
+            tst.pop("below_quantization_step", None)
+            tst["explained_by_state_law"] = True
+        elif tst["significant"]:
+            # and keep its amplitude and phase from one half of the log to the other (a misfit at the motion's lines
+            # that no function of the state explains, e.g. backlash, follows the moves instead)
+            h = comp.holds_across_halves(prep, model, ext, alpha, min_gain, tst["rmse_reduction"], solve=solve)
+            tst["half_gains"] = h["half_gains"]
+            if not h["significant"]:
                 tst["significant"] = False
-                tst["negative_friction"] = neg
+                tst["not_held_across_halves"] = True
+    return ext, tst, f1, m1
+
+
+def motion_line_gate(prep, alpha: float = ALPHA, min_gain: float = MIN_GAIN) -> frozenset:
+    """The joints on which the search offers a time-periodic candidate at a line of the motion
+    (:func:`~drake_est.diagnose.detectors.time_periodic_at_motion_line`): those where the nominal model's residual
+    shows one, i.e. that candidate passes every test of a round given the nominal model (:func:`_round`: the held-out
+    F-test, the gain, the ADC guard, the paired block test) including the free function of the state
+    (:func:`~drake_est.diagnose.competition.survives_state_law`).  Decided once per diagnosis, on the data as first
+    prepared: a disturbance that only shows once other findings are in stays unseen at a line of the motion (as
+    before the thirty-third round), and every other diagnosis runs as before it."""
+    model = Model(prep)
+    fit = model.fit()
+    sigma = {j: float(np.sqrt(fit.rss_val[j] / max(prep.joints[j].val.sum(), 1))) for j in prep.joints}
+    out = set()
+    for j, jd in prep.joints.items():
+        e = det.time_periodic_at_motion_line(jd, _residual(prep, fit, j))
+        if e is None:
+            continue
+        ext, tst, _, _ = _evaluate(prep, model, fit, sigma, e, alpha, min_gain, {})
         if tst["significant"]:
-            # the F-test counts every held-out sample as independent; a closed-loop residual is correlated over a
-            # move, and a flexible candidate can fit such structure in-sample without predicting the held-out
-            # blocks any better: the gain must also hold across the held-out blocks (paired test)
-            paired = comp.paired_block_test(prep, fit, f1, list(ext.cols))
-            tst["paired_p_value"] = paired["p_value"]
-            if paired["p_value"] >= PAIRED_ALPHA:
-                tst["significant"] = False
-                tst["not_separated_on_held_out_blocks"] = True
-                # where its gain lies when a few stretches hold it (the log does not repeat what would confirm
-                # it: next_experiment says what would); reported, never used to decide
-                where = comp.gain_concentration(prep, fit, f1, list(ext.cols), PAIRED_ALPHA)
-                if where is not None:
-                    tst["gain_concentration"] = where
-        results.append((ext, tst, f1, m1))
-    return results
+            out.add(j)
+    return frozenset(out)
 
 
 def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
@@ -967,7 +1063,10 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
         acc = {(x.effect, None if x.shared else x.joint) for x in others}
         results = [r for r in _round(prep, m0, f0, sigma, acc, alpha, min_gain)
                    if not r[0].shared and r[0].joint == e.joint]
-        own = [r for r in results if r[0].effect == e.effect]
+        # the time-periodic scan may offer two candidates (off and at a line of the motion): the finding's own is the
+        # better one, significant first
+        own = sorted((r for r in results if r[0].effect == e.effect),
+                     key=lambda r: (not r[1]["significant"], -r[1]["score"]))
         if not own or not own[0][1]["significant"]:
             return e.effect, e.joint, {"reason": "not significant given the other findings",
                                        "p_value": own[0][1]["p_value"] if own else None}
@@ -1264,6 +1363,7 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
             break
         best, periodic = comp.resolve_periodic(prep, best, results)
         ext, tst, f1, m1 = best
+        _mark_confounded_with_time(prep, model, best, results, alpha, min_gain)
         competition = _competition(ext, tst, results, prep)
         if periodic is not None:      # one speed level: ripple in position vs in time not identifiable
             competition.update(periodic)
@@ -1316,6 +1416,7 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
     it flags new samples, they are excluded and the search is repeated once."""
     t0 = time.perf_counter()
     prep = prepare(log, robot=robot, joints=joints, seed=seed)
+    prep.meta["motion_line_joints"] = motion_line_gate(prep, alpha, min_gain)
     t_prep = time.perf_counter() - t0
     screened = inertia_done = False
     for _pass in range(3):

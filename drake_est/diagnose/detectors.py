@@ -730,6 +730,31 @@ def time_periodic_refit(jd, r_p, ext):
     return Extension("time_periodic_disturbance", jd.joint, {jd.joint: C}, names, spec, ev)
 
 
+def time_periodic_at_motion_line(jd, r, min_periods: float = 4.0):
+    """The time-periodic candidate at the strongest frequency of the whole scan when that frequency lies at a line
+    of the motion (within two resolution bins, :func:`motion_lines_hz`), which :func:`time_periodic` does not scan;
+    None when the whole scan's peak is elsewhere (then it is :func:`time_periodic`'s own candidate).  A disturbance
+    slower than a few tenths of a hertz lies at such a line whenever the moves are point to point (their lines are
+    dense there): skipped, it was never a candidate, and a position law took its place (a 0.04 Hz disturbance in a
+    120 s loop log).  At a line a state-dependent misfit looks periodic in time too, so the search offers this
+    candidate only where the nominal residual shows one (:func:`~drake_est.diagnose.core.motion_line_gate`) and holds
+    it against a free function of the state and its reversals
+    (:func:`~drake_est.diagnose.competition.survives_state_law`) and across the halves of the log
+    (:func:`~drake_est.diagnose.competition.holds_across_halves`).  Its evidence carries ``at_motion_line_hz``, the
+    line."""
+    e = time_periodic(jd, r, skip_motion_lines=False, min_periods=min_periods)
+    if e is None:
+        return None
+    f = float(e.evidence["frequency_hz"])
+    lines = motion_lines_hz(jd)
+    T_log = float(np.ptp(jd.t))
+    near = lines[np.abs(lines - f) <= 2.0 / max(T_log, 1e-12)] if lines.size else lines
+    if near.size == 0:
+        return None
+    e.evidence["at_motion_line_hz"] = float(near[np.argmin(np.abs(near - f))])
+    return e
+
+
 def time_periodic(jd, r, n_components=1, skip_motion_lines=True, min_periods: float = 4.0):
     """A torque periodic in *time* (pump, fan, neighbouring machine): the least-squares periodogram of
     the training residual over time (the spectral tools of Ch. 10 with time as the sampling location,

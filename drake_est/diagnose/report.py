@@ -189,6 +189,12 @@ class DiagnosisReport:
             ev = {"test": "F-test on held-out residual", "p_value": s.test["p_value"], "F": s.test["F"],
                   "dof": s.test["dof"], "heldout_rmse_reduction": s.test["rmse_reduction"]}
             ev.update({k2: v for k2, v in s.ext.evidence.items() if k2 != "segment_params_train"})
+            if "state_law_test" in s.test:
+                # a disturbance at a line of the motion: its test given a free function of the state, and its
+                # held-out gains from one half of the log to the other
+                ev["given_state_function"] = s.test["state_law_test"]
+                if "half_gains" in s.test:
+                    ev["gains_across_halves"] = s.test["half_gains"]
             f = {"effect": s.ext.effect, "joint": int(s.ext.joint), "score": s.test["score"], "evidence": ev,
                  "parameters": effect_parameters(res, s.ext, model_k, s.fit),
                  "validation": s.validation,
@@ -357,6 +363,14 @@ def markdown(d: dict) -> str:
         L.append(f"Cause: {EFFECT_TEXT.get(f['effect'], f['effect'])}.")
         L.append(f"Evidence: {ev['test']}, F = {ev['F']:.4g} with {ev['dof']} degrees of freedom, p = {ev['p_value']:.3g}; "
                  f"held-out RMSE reduced by {100 * ev['heldout_rmse_reduction']:.1f} % (score {f['score']:.4g}).")
+        if ev.get("at_motion_line_hz") is not None and ev.get("given_state_function"):
+            g = ev["given_state_function"]
+            L.append(f"At a line of the motion ({ev['at_motion_line_hz']:.4g} Hz), where any misfit of position, speed "
+                     "and acceleration repeats too: given a free function of them (and of the reversals) it still "
+                     f"lowers the held-out RMSE by {100 * g['rmse_reduction']:.1f} % (p = {g['p_value']:.3g})"
+                     + (", and fitted on either half of the log it lowers that of the other half by "
+                        + " and ".join(f"{100 * x:.1f} %" for x in ev["gains_across_halves"])
+                        if ev.get("gains_across_halves") else "") + ".")
         c = f.get("competition") or {}
         if c.get("runner_up"):
             m = c.get("margin")
@@ -474,6 +488,10 @@ REJECTION_REASONS = (
     ("below_quantization_step", "its change of the prediction stays within the torque ADC's rounding"),
     ("not_separated_on_held_out_blocks", "its gain does not hold across the held-out blocks (paired test)"),
     ("explained_by_speed_law", "a free friction curve explains it"),
+    ("explained_by_state_law", "it lies at a line of the motion, and a free function of position, speed and "
+                               "acceleration explains it as well"),
+    ("not_held_across_halves", "it lies at a line of the motion and does not keep its phase from one half of the "
+                               "log to the other"),
     ("explained_by_uneven_residual", "it won only through the time windows with bursts of misfit"),
     ("explained_by_periodic_residual", "the periodic residual explains it"),
     ("explained_by_dither", "a disturbance's dither of the Coulomb friction explains it"),

@@ -930,6 +930,19 @@ def next_experiments(prep, steps, duration, rejected=()) -> list:
                                          "a speed law moves with the speed")
                 exp["speeds"] = [lo, float(np.sqrt(lo * hi)), hi]
                 exp["position_range_covered"] = [qa, qb]
+            elif c.get("confounded_with_time") and jd is not None:
+                # a law of the state and a slow disturbance in time (competition.law_confounded_with_time): the
+                # moves pass each position at one phase of the disturbance; repeats half a period apart separate them
+                f = float(c["time_periodic_frequency_hz"])
+                qa, qb = float(np.min(jd.q)), float(np.max(jd.q))
+                exp["experiment"] = (f"the same moves of joint {j} over {qa:.3g} to {qb:.3g}, repeated with the "
+                                     f"repeats started {0.5 / f:.3g} s apart (half a period of {f:.3g} Hz) and "
+                                     f"the log at least {10.0 / f:.0f} s long (10 periods): a disturbance in time "
+                                     "changes its sign at a position between the repeats, a law of position and "
+                                     "speed does not")
+                exp["repeat_offset_s"] = 0.5 / f
+                exp["duration_s"] = 10.0 / f
+                exp["position_range_covered"] = [qa, qb]
             elif time_vs_speed and jd is not None:
                 v = np.abs(jd.v[jd.rows])
                 lo, hi = float(np.quantile(v, 0.05)), float(np.quantile(v, 0.95))
