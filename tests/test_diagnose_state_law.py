@@ -76,7 +76,10 @@ def test_a_position_friction_at_a_motion_line_is_not_a_disturbance():
     # the inertia's misfits), fitted with the search's solver
     t = comp.survives_state_law(prep, model, fit, e, core.ALPHA, core.MIN_GAIN, solve=core._model_solver(model, 1))
     assert not t["significant"] and t["nuisance_columns"] >= 12
-    assert 1 not in core.motion_line_gate(prep)
+    # the round's evaluation of the candidate applies that test: not significant, marked as the state's
+    sigma = {1: float(np.sqrt(fit.rss_val[1] / prep.joints[1].val.sum()))}
+    _, tst, _, _ = core._evaluate(prep, model, fit, sigma, e, core.ALPHA, core.MIN_GAIN, {})
+    assert tst["explained_by_state_law"] and not tst["significant"]
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert [f["effect"] for f in d["findings"]][:1] == ["position_dependent_friction"]
     assert "time_periodic_disturbance" not in [f["effect"] for f in d["findings"]]

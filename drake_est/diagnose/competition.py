@@ -135,6 +135,12 @@ def one_speed_level(jd, window_s: float = 1.0) -> bool:
     return speed_level_ratio(jd, window_s) < ONE_SPEED_RATIO
 
 
+def better_first(results) -> list:
+    """Round results (ext, test, ...) of one effect and joint, the significant first, then by score: the time-periodic
+    scan may offer two candidates (off and at a line of the motion), and the better one stands for the effect."""
+    return sorted(results, key=lambda r: (not r[1]["significant"], -r[1]["score"]))
+
+
 def resolve_periodic(prep, best, results):
     """``(kept, info)`` for the round's winner ``best`` = (ext, test, fit, model) among ``results``.
 
@@ -149,8 +155,7 @@ def resolve_periodic(prep, best, results):
     if ratio >= ONE_SPEED_RATIO:
         return best, None
     partner = next(e for e in PERIODIC_PAIR if e != ext.effect)
-    other = sorted((r for r in results if r[0].effect == partner and r[0].joint == ext.joint),
-                   key=lambda r: (not r[1]["significant"], -r[1]["score"]))   # two time-periodic scans: the better
+    other = better_first(r for r in results if r[0].effect == partner and r[0].joint == ext.joint)
     kept = best
     if ext.effect != "motor_position_ripple" and other and other[0][1]["significant"]:
         kept = other[0]
@@ -600,8 +605,8 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None):
     sign(qd) and the speed curve of each direction both span one level per direction) or that a few samples decide
     (the jerk) can raise the held-out error together where each alone lowers it, and a nuisance that predicts worse
     than the model makes any candidate look good given it (loop spec 5775: all blocks at once raised the held-out
-    RMSE by 62 %); the forward choice keeps the nuisance a predictor, as :func:`periodic_nuisance` does.  None when no
-    block lowers the held-out error."""
+    RMSE by 62 %); the forward choice keeps the nuisance a predictor, as :func:`periodic_nuisance` does.  No columns
+    when no block lowers the held-out error (the candidate is then tested given the model alone)."""
     solve = solve or _lstsq
     from drake_est.diagnose.nominal import nominal_names
     n0 = len(nominal_names(prep.robot_kind))
@@ -618,13 +623,13 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None):
             break
         best = trial[k]
         cols.append(blocks.pop(k))
-    return np.hstack(cols) if cols else None
+    return np.hstack(cols) if cols else np.zeros((X.shape[0], 0))
 
 
 def survives_state_law(prep, model, fit, ext, alpha: float, min_gain: float, nuisance=None, solve=None) -> dict:
     """Partial held-out F-test of a time-periodic candidate at a line of the motion (evidence ``at_motion_line_hz``,
     :func:`~drake_est.diagnose.detectors.time_periodic_at_motion_line`) given a free function of the state of its
-    joint (:func:`state_nuisance`; given nothing where no block of it predicts the held-out data).  Every misfit
+    joint (:func:`state_nuisance`; ``nuisance``: its columns, default made here).  Every misfit
     g(q, qd, qdd) of the model repeats with the motion and so is periodic at
     the motion's lines; a disturbance from outside the axis does not follow the state, and a sinusoid in time that
     still predicts the held-out data given any such g is one.  ``{"significant": True, "skipped": ...}`` when it
@@ -632,8 +637,6 @@ def survives_state_law(prep, model, fit, ext, alpha: float, min_gain: float, nui
     if ext.effect != "time_periodic_disturbance" or ext.shared or "at_motion_line_hz" not in ext.evidence:
         return {"significant": True, "skipped": "not a time-periodic candidate at a line of the motion"}
     N = state_nuisance(prep, model, ext.joint, solve=solve) if nuisance is None else nuisance
-    if N is None:
-        N = np.zeros((ext.cols[ext.joint].shape[0], 0))     # no function of the state predicts the held-out data
     return _partial_test(prep, model, ext.joint, N, ext.cols[ext.joint], alpha, min_gain, solve)
 
 
@@ -653,28 +656,22 @@ def holds_across_halves(prep, model, ext, alpha: float, min_gain: float, own_gai
     from one half of the log to the other (loop spec 1317: backlash at 50 Hz, gain 4.2 % on the whole log, 2.6 % and
     0.8 % across the halves; a slow disturbance keeps 76 % of its gain or more).  Returns the test with ``significant``
     and the two gains."""
-    solve = solve or _lstsq
-    from drake_est.diagnose.nominal import nominal_names
-    n0 = len(nominal_names(prep.robot_kind))
     j = ext.joint
     jd = prep.joints[j]
     t = jd.t[jd.rows]
-    X = model.design_with_shared(j)
-    A1 = np.hstack([X, ext.cols[j]])
+    C = ext.cols[j]
+    none = np.zeros((C.shape[0], 0))
+    n_cols = model.design_with_shared(j).shape[1] + C.shape[1]
     mid = float(np.median(t))
     gains, ok = [], True
     for first in (t < mid, t >= mid):
         tr, va = jd.train & first, jd.val & ~first
-        n, d = int(va.sum()), ext.cols[j].shape[1]
-        if tr.sum() <= A1.shape[1] or n <= d:
+        if tr.sum() <= n_cols or va.sum() <= C.shape[1]:
             return {"significant": False, "half_gains": [], "too_few_rows": True}
-        rss0, _ = _fit_rss(X, jd.y, tr, va, n0, solve)
-        rss1, _ = _fit_rss(A1, jd.y, tr, va, n0, solve)
-        F = ((rss0 - rss1) / d) / (rss1 / max(n - d, 1)) if rss1 > 0 else np.inf
-        p = float(scipy.stats.f.sf(F, d, max(n - d, 1))) if F > 0 else 1.0
-        g = 1.0 - np.sqrt(rss1 / rss0) if rss0 > 0 else 0.0
-        gains.append(float(g))
-        ok = ok and p < alpha and g >= min_gain and g >= HALF_GAIN_SHARE * own_gain
+        h = _partial_test(prep, model, j, none, C, alpha, min_gain, solve, rows=(tr, va))
+        g = h["rmse_reduction"]
+        gains.append(g)
+        ok = ok and h["p_value"] < alpha and g >= min_gain and g >= HALF_GAIN_SHARE * own_gain
     return {"significant": bool(ok), "half_gains": gains}
 
 
@@ -769,9 +766,10 @@ def _brief(t) -> dict:
 
 
 def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None, weights=None, offset=None,
-                  coef: bool = False) -> dict:
+                  coef: bool = False, rows=None) -> dict:
     """Held-out partial F-test of the columns ``C`` of joint ``j`` given the model and the nuisance columns ``N``
-    (fitted on the training rows, compared on the validation rows of the joint); with ``weights`` (one per used row)
+    (fitted on the training rows, compared on the validation rows of the joint; ``rows`` = (fit rows, compared
+    rows), boolean over the used rows, instead); with ``weights`` (one per used row)
     weighted least squares and weighted held-out sums of squares; with ``offset`` (one per used row) a known part of
     the torque taken off it first; with ``coef`` also the coefficients of the fit with ``C`` (``"coef"``: model,
     nuisance, then ``C``'s columns)."""
@@ -786,11 +784,12 @@ def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None, weights=Non
     if weights is not None:
         sw = np.sqrt(np.asarray(weights, float))
         A0, A1, y = A0 * sw[:, None], A1 * sw[:, None], y * sw
-    rss0, _ = _fit_rss(A0, y, jd.train, jd.val, n_nominal, solve)
-    rss1, c1 = _fit_rss(A1, y, jd.train, jd.val, n_nominal, solve)
-    n = int(jd.val.sum())
+    train, val = (jd.train, jd.val) if rows is None else rows
+    rss0, _ = _fit_rss(A0, y, train, val, n_nominal, solve)
+    rss1, c1 = _fit_rss(A1, y, train, val, n_nominal, solve)
+    n = int(val.sum())
     d = C.shape[1]
-    F = ((rss0 - rss1) / d) / (rss1 / max(n - d, 1))
+    F = ((rss0 - rss1) / d) / (rss1 / max(n - d, 1)) if rss1 > 0 else np.inf   # exact fit: rss1 = 0
     p = float(scipy.stats.f.sf(F, d, max(n - d, 1))) if F > 0 else 1.0
     gain = 1.0 - np.sqrt(rss1 / rss0) if rss0 > 0 else 0.0
     score = float(n * np.log(rss0 / max(rss1, 1e-300)) - 2 * d)

@@ -1000,9 +1000,7 @@ def _evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state) -> tuple:
         solve = _model_solver(model, ext.joint)
         if ext.joint not in state:
             state[ext.joint] = comp.state_nuisance(prep, model, ext.joint, solve=solve)
-        N = state[ext.joint]
-        t = comp.survives_state_law(prep, model, fit, ext, alpha, min_gain, solve=solve,
-                                    nuisance=N if N is not None else np.zeros((ext.cols[ext.joint].shape[0], 0)))
+        t = comp.survives_state_law(prep, model, fit, ext, alpha, min_gain, nuisance=state[ext.joint], solve=solve)
         tst["state_law_test"] = comp._brief(t)
         if not t["significant"]:
             tst["significant"] = False
@@ -1022,9 +1020,9 @@ def _evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state) -> tuple:
 def motion_line_gate(prep, alpha: float = ALPHA, min_gain: float = MIN_GAIN) -> frozenset:
     """The joints on which the search offers a time-periodic candidate at a line of the motion
     (:func:`~drake_est.diagnose.detectors.time_periodic_at_motion_line`): those where the nominal model's residual
-    shows one, i.e. that candidate passes every test of a round given the nominal model (:func:`_round`: the held-out
-    F-test, the gain, the ADC guard, the paired block test) including the free function of the state
-    (:func:`~drake_est.diagnose.competition.survives_state_law`).  Decided once per diagnosis, on the data as first
+    shows one, i.e. that candidate passes every test of a round given the nominal model (:func:`_evaluate`: the
+    held-out F-test, the gain, the ADC guard, the paired block test, the free function of the state and the halves of
+    the log).  Decided once per diagnosis, on the data as first
     prepared: a disturbance that only shows once other findings are in stays unseen at a line of the motion (as
     before the thirty-third round), and every other diagnosis runs as before it."""
     model = Model(prep)
@@ -1063,10 +1061,7 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
         acc = {(x.effect, None if x.shared else x.joint) for x in others}
         results = [r for r in _round(prep, m0, f0, sigma, acc, alpha, min_gain)
                    if not r[0].shared and r[0].joint == e.joint]
-        # the time-periodic scan may offer two candidates (off and at a line of the motion): the finding's own is the
-        # better one, significant first
-        own = sorted((r for r in results if r[0].effect == e.effect),
-                     key=lambda r: (not r[1]["significant"], -r[1]["score"]))
+        own = comp.better_first(r for r in results if r[0].effect == e.effect)
         if not own or not own[0][1]["significant"]:
             return e.effect, e.joint, {"reason": "not significant given the other findings",
                                        "p_value": own[0][1]["p_value"] if own else None}
