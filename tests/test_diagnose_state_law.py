@@ -138,7 +138,8 @@ def test_docs_quote_the_slow_disturbance_runs():
     sys.path.insert(0, str(root / "benchmarks"))
     import bench_slow_disturbance as bs
     doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
-    for name in ("diagnose_slow_disturbance_before_round33.json", "diagnose_slow_disturbance_round33.json"):
+    for name in ("diagnose_slow_disturbance_before_round33.json", "diagnose_slow_disturbance_round33.json",
+                 "diagnose_slow_disturbance_round34.json"):
         d = json.loads((root / "benchmarks" / "results" / name).read_text())
         assert f"`{name}`: {bs.counts_text(d)}" in doc
 
@@ -189,3 +190,35 @@ def test_a_disturbance_at_the_block_alternation_is_found_at_a_motion_line():
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert [f["effect"] for f in d["findings"]] == ["time_periodic_disturbance"]
     assert abs(d["findings"][0]["evidence"]["frequency_hz"] - 0.5) < 0.01
+
+
+def test_at_line_candidate_frequency_is_chosen_beside_the_models_columns():
+    # 0.06 Hz, seed 3 (point-to-point moves, 120 s): found on the nominal residual alone the candidate sits at
+    # 0.0602 Hz, since the nominal columns take part of a disturbance at the motion's lines; chosen beside them
+    # (variable projection, core.at_line_refined) it is at 0.0600 Hz
+    f_true = 0.06
+    log, truth = generate({"time_periodic_disturbance": 1.0, "_f_hz": f_true}, seed=3)
+    assert truth["trajectory"] == "p2p"
+    prep, model, fit = _nominal(log)
+    jd = prep.joints[1]
+    r = core._residual(prep, fit, 1)
+    raw = det.time_periodic_at_motion_line(jd, r)
+    assert raw is not None
+    new = core.at_line_refined(raw, jd, r, model.design_with_shared(1))
+    f_raw, f_new = raw.evidence["frequency_hz"], new.evidence["frequency_hz"]
+    assert abs(f_raw - f_true) > 1e-4
+    assert abs(f_new - f_true) < 0.25 * abs(f_raw - f_true)
+    assert new.evidence["refined_from_frequency_hz"] == pytest.approx(f_raw)
+    assert "at_motion_line_hz" in new.evidence
+    assert core.at_line_refined(None, jd, r, model.design_with_shared(1)) is None
+
+
+@pytest.mark.parametrize("f_hz,seed", [(0.04, 6), (0.06, 3), (0.08, 3)])
+def test_slow_disturbance_found_off_its_frequency_left_a_position_law(f_hz, seed):
+    # thirty-third round: the disturbance was named, and then a position law (not planted) for the phase misfit of a
+    # frequency chosen on the residual alone (0.0602 Hz for 0.06 Hz); the thirty-fourth round chooses it beside the
+    # model's columns
+    log, _ = generate({"time_periodic_disturbance": 1.0, "_f_hz": f_hz}, seed=seed)
+    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    assert [f["effect"] for f in d["findings"]] == ["time_periodic_disturbance"]
+    assert abs(d["findings"][0]["evidence"]["frequency_hz"] - f_hz) < 2e-3 * f_hz

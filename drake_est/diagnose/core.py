@@ -385,7 +385,7 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             # moves), on the joints where the nominal residual shows one (motion_line_gate): held against a free
             # function of the state in _round
             if j in prep.meta.get("motion_line_joints", ()):
-                out.append(det.time_periodic_at_motion_line(jd, r))
+                out.append(at_line_refined(det.time_periodic_at_motion_line(jd, r), jd, r, X))
         if not have("gear_coupling") and len(prep.joints) > 1:
             out.append(det.coupling(jd, r, prep))
         if cache is not None:
@@ -834,6 +834,19 @@ def backfit_changes(prep, model, fit, sigma):
     return _backfit(prep, model, fit, sigma, "abrupt_change", redetect)
 
 
+def at_line_refined(ext, jd, r, X):
+    """A time-periodic candidate at a line of the motion (:func:`~drake_est.diagnose.detectors.time_periodic_at_motion_line`,
+    found on the residual ``r`` alone) with its frequency and harmonics chosen again beside the model's columns ``X``
+    (:func:`~drake_est.diagnose.detectors.time_periodic_refit` with ``X``; evidence ``refined_from_frequency_hz``):
+    a slow disturbance shares its frequencies with the motion, whose columns take part of it, so the residual alone
+    places it off (0.0602 Hz for 0.06 Hz) and a position law is later named for the phase misfit.  ``ext`` itself
+    when nothing moves; None for None."""
+    if ext is None:
+        return None
+    new = det.time_periodic_refit(jd, r, ext, X=X, key="refined_from_frequency_hz", skip_motion_lines=False)
+    return ext if new is None else new
+
+
 def backfit_periodic(prep, model, fit, sigma):
     """Backfitting of an accepted time-periodic disturbance (:func:`_backfit`): its frequency and harmonics were found
     on the residual of the model at the time it was accepted, where a larger effect not yet in the model (a position
@@ -841,9 +854,17 @@ def backfit_periodic(prep, model, fit, sigma):
     biases the inertia of the closed-loop fit and is later taken for another effect.  Once later findings are in
     the model, the disturbance is estimated again on its partial residual
     (:func:`~drake_est.diagnose.detectors.time_periodic_refit`) and replaced when that lowers the training
-    residual.  Returns ``(model, fit, moved)`` with ``moved`` a list of (joint, old extension, new extension)."""
-    return _backfit(prep, model, fit, sigma, "time_periodic_disturbance",
-                    lambda model, e, jd, r_p: det.time_periodic_refit(jd, r_p, e))
+    residual; one at a line of the motion is estimated beside the rest of the model's columns (as
+    :func:`at_line_refined` chose it).  Returns ``(model, fit, moved)`` with ``moved`` a list of (joint, old
+    extension, new extension)."""
+    def redetect(model, e, jd, r_p):
+        if "at_motion_line_hz" not in e.evidence:
+            return det.time_periodic_refit(jd, r_p, e)
+        # at a line of the motion: beside the rest of the model, as when it was a candidate (at_line_refined)
+        X = Model(prep, [x for x in model.exts if x is not e]).design_with_shared(e.joint)
+        return det.time_periodic_refit(jd, r_p, e, X=X, skip_motion_lines=False)
+
+    return _backfit(prep, model, fit, sigma, "time_periodic_disturbance", redetect)
 
 
 #: how many times one search runs a round again after the Stribeck backfit reshaped the law (:func:`_search`)
