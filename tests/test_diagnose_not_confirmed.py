@@ -133,3 +133,52 @@ def test_spec_1287_names_the_load_only_as_ambiguous_with_the_asymmetry():
             c = f["competition"]
             sep = c.get("separation_below_min_gain", {}).get("asymmetric_coulomb", c.get("separation_from_runner_up"))
             assert sep < core.MIN_GAIN_NOT_WHITE
+
+
+def test_a_fourth_weak_finding_is_not_named_either():
+    # a Stribeck law twice the generator's size (loop seed 3, 100 Hz): its shape misfit is about five times the noise,
+    # and weak candidates soak it up in turn; with MAX_NOT_CONFIRMED = 3 (before the thirty-fifth round) the fourth,
+    # an energy drift of 6 %, was named
+    assert core.MAX_NOT_CONFIRMED >= 4
+    log, _ = generate({"stribeck": 2.0}, seed=3, duration=120.0, sample_rate=100.0, noise_std=0.1)
+    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    assert [f["effect"] for f in d["findings"]] == ["stribeck"]
+    weak = [s for s in d["set_aside"] if s.get("not_confirmed")]
+    assert len(weak) >= 4
+    assert "energy_dependent_friction" in [s["effect"] for s in weak]
+    assert all(s["heldout_rmse_reduction"] < core.MIN_GAIN_NOT_WHITE for s in weak)
+    assert d["unexplained"]
+
+
+def test_docs_quote_the_large_effect_runs():
+    # the docs' numbers come from the kept JSONs of benchmarks/bench_large_effects.py, before and with the round
+    import json
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(root / "benchmarks"))
+    import bench_large_effects as bl
+    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    for name in ("diagnose_large_effects_before_round35.json", "diagnose_large_effects_round35.json"):
+        d = json.loads((root / "benchmarks" / "results" / name).read_text())
+        assert f"`{name}`: {bl.counts_text(d)}" in doc
+    assert bl.specs([2.0], [0])[0]["effects"] == {"stribeck": 2.0}
+
+
+def test_what_the_large_effect_probe_leaves_is_what_the_docs_say():
+    # bench_large_effects' remaining cases, as the thirty-fifth round's section describes them: the asymmetric level
+    # of seed 2 is not identifiable (the selected samples move one way), and a large Stribeck hump biases the inertia
+    # that prepare identifies (seed 3: 0.354 planted)
+    import numpy as np
+    from drake_est.diagnose.core import prepare
+    log, _ = generate({"asymmetric_coulomb": 2.0}, seed=2, duration=120.0, sample_rate=100.0, noise_std=0.1)
+    jd = prepare(log, robot="generic", seed=0).joints[1]
+    v = jd.v[jd.rows]
+    assert np.sum(v < 0) <= 3 and np.sum(v > 0) > 5000
+    J = []
+    for size in (1.0, 2.0, 3.0):
+        log, truth = generate({"stribeck": size}, seed=3, duration=120.0, sample_rate=100.0, noise_std=0.1)
+        J.append(prepare(log, robot="generic", seed=0).joints[1].counts["inertia"])
+    assert truth["J"] == pytest.approx(0.354, abs=1e-3)
+    assert J == sorted(J) and J[0] > 1.6 * truth["J"]
+    assert J == pytest.approx([0.60, 0.71, 0.78], abs=0.01)
