@@ -22,7 +22,7 @@ from pathlib import Path
 os.environ.setdefault("DRAKE_EST_NO_PROGRESS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_slow_disturbance import _seeds, counts_text  # noqa: E402  (the same counts and seed lists)
+from bench_slow_disturbance import _seeds, counts_by, counts_text, print_counts  # noqa: E402  (same counts)
 
 SIZES = (2.0, 3.0)
 
@@ -44,13 +44,8 @@ def run(sizes=SIZES, seeds=range(4)) -> dict:
         (e, s), = sp[r["k"]]["effects"].items()
         r["effect"], r["size"], r["seed"] = e, s, sp[r["k"]]["seed"]
     s = b.summarize(rows)
-    per_size = {}
-    for size in sizes:
-        rs = [r for r in rows if r["size"] == float(size)]
-        per_size[str(float(size))] = {"logs": len(rs), **{k: sum(1 for r in rs if r[k]) for k in
-                                                          ("correct", "wrong", "missed")}}
     return {"logs": s["logs"], "correct": s["correct"], "wrong_names": s["wrong_names"], "missed": s["missed"],
-            "per_size": per_size, "rows": rows, "refused": refused}
+            "per_size": counts_by(rows, "size", [float(x) for x in sizes]), "rows": rows, "refused": refused}
 
 
 def main(argv=None) -> dict:
@@ -67,9 +62,7 @@ def main(argv=None) -> dict:
         print("bench_large_effects: --sizes must be numbers > 0", file=sys.stderr)
         raise SystemExit(2)
     out = run(sizes, _seeds(a.seeds))
-    print(f"large effects: {counts_text(out)}")
-    for s, c in out["per_size"].items():
-        print(f"  size {s}: {c['correct']}/{c['logs']} correct, {c['wrong']} wrong, {c['missed']} missed")
+    print_counts("large effects", out, "per_size", lambda s: f"size {s}")
     for r in out["rows"]:
         if not r["correct"]:
             print(f"  {r['effect']} x{r['size']:g} seed {r['seed']}: {r['got']} (wrong {r['wrong']}, missed {r['missed']})")

@@ -42,12 +42,24 @@ def run(freqs=FREQS_HZ, seeds=range(12)) -> dict:
         r["seed"] = sp[r["k"]]["seed"]
         r["trajectory"] = b.loop_log(sp[r["k"]])[1]["trajectory"]
     s = b.summarize(rows)
-    per_f = {str(f): {k: sum(1 for r in rows if r["f_hz"] == f and r[k]) for k in ("correct", "wrong", "missed")}
-             for f in freqs}
-    for f in freqs:
-        per_f[str(f)]["logs"] = sum(1 for r in rows if r["f_hz"] == f)
     return {"logs": s["logs"], "correct": s["correct"], "wrong_names": s["wrong_names"], "missed": s["missed"],
-            "per_frequency": per_f, "rows": rows, "refused": refused}
+            "per_frequency": counts_by(rows, "f_hz", freqs), "rows": rows, "refused": refused}
+
+
+def counts_by(rows, key: str, values) -> dict:
+    """{str(value): {"logs", "correct", "wrong", "missed"}} of the rows whose ``key`` is each of ``values``."""
+    out = {}
+    for x in values:
+        rs = [r for r in rows if r[key] == x]
+        out[str(x)] = {"logs": len(rs), **{k: sum(1 for r in rs if r[k]) for k in ("correct", "wrong", "missed")}}
+    return out
+
+
+def print_counts(title: str, d: dict, groups: str, label) -> None:
+    """The run's counts (:func:`counts_text`) and each group's (``d[groups]``, named by ``label(key)``)."""
+    print(f"{title}: {counts_text(d)}")
+    for g, c in d[groups].items():
+        print(f"  {label(g)}: {c['correct']}/{c['logs']} correct, {c['wrong']} wrong, {c['missed']} missed")
 
 
 def counts_text(d: dict) -> str:
@@ -69,10 +81,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
     out = run([float(x) for x in a.freqs.split(",")], _seeds(a.seeds))
-    print(f"slow disturbances: {out['correct']}/{out['logs']} correct, {out['wrong_names']} wrong names, "
-          f"{out['missed']} missed")
-    for f, c in out["per_frequency"].items():
-        print(f"  {f} Hz: {c['correct']}/{c['logs']} correct, {c['wrong']} wrong, {c['missed']} missed")
+    print_counts("slow disturbances", out, "per_frequency", lambda f: f"{f} Hz")
     if a.json:
         from drake_est.jsonutil import dump_json
         dump_json(out, a.json)

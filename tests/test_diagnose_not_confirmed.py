@@ -191,8 +191,8 @@ def _drift_search(seed, n_iter, monkeypatch):
     from drake_est.diagnose.core import prepare
     orig = _ENERGY
 
-    def energy(jd, r, F, fit_train, n_iter_default=2, energy_fn=None, **_):
-        return orig(jd, r, F, fit_train, n_iter=n_iter, energy_fn=energy_fn)
+    def energy(jd, r, F, fit_train, **kw):
+        return orig(jd, r, F, fit_train, **{**kw, "n_iter": n_iter})
 
     monkeypatch.setattr(det, "energy", energy)
     log, truth = generate({"energy_dependent_friction": 3.0}, seed=seed, duration=120.0, sample_rate=100.0,

@@ -661,6 +661,18 @@ def _tp_names(n):
     return [f"a_cos_{i + 1}" for i in range(n)] + [f"a_sin_{i + 1}" for i in range(n)] if n > 1 else ["a_cos", "a_sin"]
 
 
+def motion_line_band_hz(jd) -> float:
+    """Half-width [Hz] of the band around each line of the motion (:func:`motion_lines_hz`) that counts as that line:
+    two resolution bins of the whole log, 2 / T."""
+    return 2.0 / max(float(np.ptp(jd.t)), 1e-12)
+
+
+def _tp_basis_beside(tt, freqs, X=None):
+    """:func:`_tp_basis` with other columns ``X`` (rows of ``tt``) before it (None: the basis alone)."""
+    B = _tp_basis(tt, freqs)
+    return B if X is None else np.hstack([X, B])
+
+
 def _harmonics(tt, rt, f, freqs, h, skip=(), X=None):
     """``freqs`` (which hold the fundamental ``f`` [Hz]) with each harmonic 2f, 3f below 0.45 / h [Hz] added that
     lowers the residual ``rt`` at times ``tt`` by a partial F-test at p < :data:`HARMONIC_P`; harmonics within
@@ -668,11 +680,7 @@ def _harmonics(tt, rt, f, freqs, h, skip=(), X=None):
     the disturbance in every test (None: the offset only)."""
     import scipy.stats
     freqs = list(freqs)
-
-    def basis(fr):
-        return _tp_basis(tt, fr) if X is None else np.hstack([X, _tp_basis(tt, fr)])
-
-    B = basis(freqs)
+    B = _tp_basis_beside(tt, freqs, X)
     e_cur = rt - B @ np.linalg.lstsq(B, rt, rcond=None)[0]
     for k in (2, 3):
         fk = k * f
@@ -680,7 +688,7 @@ def _harmonics(tt, rt, f, freqs, h, skip=(), X=None):
             break
         if any(abs(fk - x) <= 1e-9 * f for x in freqs) or any(lo <= fk <= hi for lo, hi in skip):
             continue
-        Bk = basis(freqs + [fk])
+        Bk = _tp_basis_beside(tt, freqs + [fk], X)
         ek = rt - Bk @ np.linalg.lstsq(Bk, rt, rcond=None)[0]
         rss0, rss1 = float(e_cur @ e_cur), float(ek @ ek)
         dof = max(tt.size - Bk.shape[1], 1)
@@ -724,9 +732,7 @@ def time_periodic_refit(jd, r_p, ext, X=None, key: str = "refitted_from_frequenc
     Xt = None if X is None else np.asarray(X, float)[tr]
 
     def rss(f):
-        B = _tp_basis(tt, [o * f for o in orders])
-        if Xt is not None:
-            B = np.hstack([Xt, B])
+        B = _tp_basis_beside(tt, [o * f for o in orders], Xt)
         e = rt - B @ np.linalg.lstsq(B, rt, rcond=None)[0]
         return float(e @ e)
 
@@ -734,9 +740,8 @@ def time_periodic_refit(jd, r_p, ext, X=None, key: str = "refitted_from_frequenc
     res = scipy.optimize.minimize_scalar(rss, bounds=(max(f0 - half, 0.5 * f0), f0 + half), method="bounded",
                                          options={"xatol": 1e-4 / T})
     f = float(res.x) if res.success and rss(float(res.x)) < rss(f0) else f0
-    T_log = float(np.ptp(jd.t))
-    skip = [(fl - 2.0 / max(T_log, 1e-12), fl + 2.0 / max(T_log, 1e-12))
-            for fl in (motion_lines_hz(jd) if skip_motion_lines else ())]
+    band = motion_line_band_hz(jd)
+    skip = [(fl - band, fl + band) for fl in (motion_lines_hz(jd) if skip_motion_lines else ())]
     freqs = _harmonics(tt, rt, f, [f], h, skip, X=Xt)
     same_orders = sorted(round(x / f) for x in freqs) == sorted(round(o) for o in orders)
     if same_orders and abs(f - f0) <= 1e-3 / T:
@@ -764,8 +769,7 @@ def time_periodic_at_motion_line(jd, r, min_periods: float = 4.0):
         return None
     f = float(e.evidence["frequency_hz"])
     lines = motion_lines_hz(jd)
-    T_log = float(np.ptp(jd.t))
-    near = lines[np.abs(lines - f) <= 2.0 / max(T_log, 1e-12)] if lines.size else lines
+    near = lines[np.abs(lines - f) <= motion_line_band_hz(jd)] if lines.size else lines
     if near.size == 0:
         return None
     e.evidence["at_motion_line_hz"] = float(near[np.argmin(np.abs(near - f))])
@@ -805,9 +809,9 @@ def time_periodic(jd, r, n_components=1, skip_motion_lines=True, min_periods: fl
     # frequencies of the motion's own strong lines (within two resolution bins, 1 / T) are not scanned: there a
     # state-dependent misfit repeats with the motion and looks periodic in time (motion_lines_hz)
     ess = np.asarray(ess, float).copy()
-    T_log = float(np.ptp(jd.t))
+    band = motion_line_band_hz(jd)
     for fl in (motion_lines_hz(jd) if skip_motion_lines else ()):
-        ess[np.abs(freqs - fl) <= 2.0 / max(T_log, 1e-12)] = -np.inf
+        ess[np.abs(freqs - fl) <= band] = -np.inf
     if not np.isfinite(ess).any():
         return None
     f = float(freqs[int(np.argmax(ess))])
