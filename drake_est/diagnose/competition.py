@@ -598,7 +598,7 @@ def reversal_columns(jd):
     return np.column_stack(cols)
 
 
-def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None):
+def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, without=()):
     """Columns (at the joint's used rows) of a free function of the state of joint ``j`` that predicts its held-out
     residual: the blocks of :func:`state_blocks` joined one at a time, each time the one that lowers the held-out
     error of the model most (fitted on the training rows), while one does.  Blocks that overlap (the kernels times
@@ -606,13 +606,14 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None):
     (the jerk) can raise the held-out error together where each alone lowers it, and a nuisance that predicts worse
     than the model makes any candidate look good given it (loop spec 5775: all blocks at once raised the held-out
     RMSE by 62 %); the forward choice keeps the nuisance a predictor, as :func:`periodic_nuisance` does.  No columns
-    when no block lowers the held-out error (the candidate is then tested given the model alone)."""
+    when no block lowers the held-out error (the candidate is then tested given the model alone).  ``without``: the
+    names of blocks left out."""
     solve = solve or _lstsq
     from drake_est.diagnose.nominal import nominal_names
     n0 = len(nominal_names(prep.robot_kind))
     jd = prep.joints[j]
     X = model.design_with_shared(j)
-    blocks = state_blocks(prep, j, kernels)
+    blocks = {k: B for k, B in state_blocks(prep, j, kernels).items() if k not in without}
     best, _ = _fit_rss(X, jd.y, jd.train, jd.val, n0, solve)
     cols = []
     while blocks:

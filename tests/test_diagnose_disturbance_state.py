@@ -1,0 +1,97 @@
+"""A disturbance periodic in time off the motion's lines must beat a free function of the joint's state given the
+final model's other findings (core.disturbance_explained_by_state): where the moves are slow, a misfit of the
+model's laws of the state is slow in time too, and a sinusoid of a few periods per log fits it."""
+import numpy as np
+import pytest
+
+from drake_est.diagnose import competition as comp
+from drake_est.diagnose import core
+from drake_est.diagnose.core import Model, run_diagnosis
+from drake_est.diagnose.nominal import prepare
+
+from conftest import closed_loop_case
+
+
+def _names(d):
+    return [st.ext.effect for st in d.steps] + [x for st in d.steps if st.competition.get("ambiguous")
+                                                for x in comp.ambiguous_rivals(st.competition)]
+
+
+@pytest.mark.parametrize("ulps", [0, 3])
+def test_a_slow_misfit_of_the_state_is_not_named_a_disturbance(ulps):
+    # loop spec 10942: a position load beside a Lorentzian Stribeck law at 250 Hz, nearly every moving sample below
+    # twice the Stribeck speed; before the thirty-sixth round a disturbance at 0.087 Hz (17 % lower held-out RMSE, not
+    # planted, not at a line of the motion) was named for the misfit
+    mod, spec, _, _ = closed_loop_case(10942)
+    planted = {e for e in spec["effects"] if not e.startswith("_")}
+    log, _ = mod.loop_log(spec, reference_ulps=ulps)
+    d = run_diagnosis(log, robot="generic")
+    assert "time_periodic_disturbance" not in _names(d)
+    away = [x for x in d.prep.meta["set_aside"] if x.get("explained_by_state")]
+    assert [(x["effect"], x["joint"]) for x in away] == [("time_periodic_disturbance", 1)]
+    t = away[0]["state_law_test"]
+    assert not (t["p_value"] < core.ALPHA and t["rmse_reduction"] >= core.MIN_GAIN)
+    assert "function of the state of joint 1" in away[0]["reason"]
+    # what is named is planted (the level is ambiguous with the planted load)
+    named = set(_names(d))
+    assert named & planted and named <= planted | {"asymmetric_coulomb"}
+
+
+def test_a_disturbance_from_outside_the_axis_is_kept_given_the_state():
+    # loop spec 67: a disturbance at 0.5 Hz alone, 1000 Hz, Student-t noise
+    mod, spec, log, truth = closed_loop_case(67)
+    d = run_diagnosis(log, robot="generic")
+    assert [st.ext.effect for st in d.steps] == ["time_periodic_disturbance"]
+    assert "at_motion_line_hz" not in d.steps[0].ext.evidence
+    assert not [x for x in d.prep.meta["set_aside"] if x.get("explained_by_state")]
+    assert core.disturbance_explained_by_state(d.prep, d.final_model, core.ALPHA, core.MIN_GAIN) is None
+
+
+def test_a_disturbance_at_a_line_of_the_motion_is_left_to_its_round():
+    # the final check skips a candidate whose round already held it against the state (evidence at_motion_line_hz)
+    mod, spec, log, truth = closed_loop_case(10942)
+    prep = prepare(log, robot="generic", seed=0)
+    alt = core._search(prep, core.MAX_FINDINGS, core.ALPHA, core.MIN_GAIN)   # the search before any set-aside
+    exts = [st.ext for st in alt[3]]
+    tp = [e for e in exts if e.effect == "time_periodic_disturbance"]
+    assert tp and "at_motion_line_hz" not in tp[0].evidence
+    assert core.disturbance_explained_by_state(prep, Model(prep, exts), core.ALPHA, core.MIN_GAIN)[0] \
+        == "time_periodic_disturbance"
+    tp[0].evidence["at_motion_line_hz"] = float(tp[0].evidence["frequency_hz"])
+    assert core.disturbance_explained_by_state(prep, Model(prep, exts), core.ALPHA, core.MIN_GAIN) is None
+
+
+def test_the_blocks_a_disturbance_drives_are_left_out():
+    # loop spec 5597: a position friction beside a planted 15 Hz disturbance (1000 Hz, Student-t noise).  In closed
+    # loop the disturbance moves the axis, and the acceleration carries its frequency: given the state's blocks with
+    # the acceleration ones the disturbance keeps only about 2 % (it lowers the held-out RMSE by half alone), without
+    # them it stays significant and is named
+    mod, spec, log, truth = closed_loop_case(5597)
+    d = run_diagnosis(log, robot="generic")
+    assert sorted(st.ext.effect for st in d.steps) == ["position_dependent_friction", "time_periodic_disturbance"]
+    e = next(st.ext for st in d.steps if st.ext.effect == "time_periodic_disturbance")
+    assert abs(e.evidence["frequency_hz"] - 15.0) < 0.01
+    m0 = Model(d.prep, [x for x in d.final_model.exts if x is not e])
+    solve = core._model_solver(m0, 1)
+    C = e.cols[1]
+    with_acc = comp._partial_test(d.prep, m0, 1, comp.state_nuisance(d.prep, m0, 1, solve=solve), C, core.ALPHA,
+                                  core.MIN_GAIN, solve)
+    without = comp._partial_test(d.prep, m0, 1, comp.state_nuisance(
+        d.prep, m0, 1, solve=solve, without=core.DISTURBANCE_DRIVEN_BLOCKS), C, core.ALPHA, core.MIN_GAIN, solve)
+    assert with_acc["rmse_reduction"] < 0.05 < without["rmse_reduction"]
+    assert without["significant"]
+    assert core.disturbance_explained_by_state(d.prep, d.final_model, core.ALPHA, core.MIN_GAIN) is None
+
+
+def test_the_report_says_why_the_disturbance_was_set_aside(tmp_path):
+    from drake_est.diagnose import diagnose
+    mod, spec, log, truth = closed_loop_case(10942)
+    rep = diagnose(log, robot="generic", simulate=False)
+    rep.write(tmp_path)
+    md = (tmp_path / "report.md").read_text()
+    assert "## Findings set aside" in md
+    line = next(x for x in md.splitlines() if x.startswith("- time_periodic_disturbance (joint 1): explained by a function"))
+    assert "the search was run again without it" in line
+    import json
+    d = json.loads((tmp_path / "report.json").read_text())
+    assert any(r.get("explained_by_state") for r in d["set_aside"])
