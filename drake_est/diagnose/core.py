@@ -1332,8 +1332,8 @@ def disturbance_explained_by_state(prep, model, alpha, min_gain):
         if N.shape[1] and state >= own:
             return e.effect, e.joint, {
                 "reason": (f"explained by a function of the state of joint {e.joint} (position, speed, direction and "
-                           f"the time since the last reversal; "
-                           f"{N.shape[1]} columns): given it and the other findings the disturbance lowers the "
+                           f"the time since the last reversal; {N.shape[1]} columns): given it and the other findings "
+                           "the disturbance lowers the "
                            f"held-out RMSE by {100 * t['rmse_reduction']:.1f} % (p = {t['p_value']:.2g}), not "
                            f"significantly, while the state's function alone lowers it by {100 * state:.1f} % (the "
                            f"disturbance alone by {100 * own:.1f} %); a disturbance from outside the axis does not "
