@@ -95,3 +95,13 @@ def test_the_report_says_why_the_disturbance_was_set_aside(tmp_path):
     import json
     d = json.loads((tmp_path / "report.json").read_text())
     assert any(r.get("explained_by_state") for r in d["set_aside"])
+
+
+def test_state_nuisance_names_an_unknown_block():
+    mod, spec, log, truth = closed_loop_case(67)
+    prep = prepare(log, robot="generic", seed=0)
+    m = Model(prep)
+    assert set(comp.state_blocks(prep, 1)) <= set(comp.STATE_BLOCK_NAMES)
+    assert set(core.DISTURBANCE_DRIVEN_BLOCKS) <= set(comp.STATE_BLOCK_NAMES)
+    with pytest.raises(ValueError, match="no state block named intertia"):
+        comp.state_nuisance(prep, m, 1, without=("intertia",))

@@ -541,6 +541,10 @@ def survives_speed_law(prep, model, fit, ext, alpha: float, min_gain: float, nui
 STATE_KERNELS = 12
 
 
+#: the names of the blocks :func:`state_blocks` can return
+STATE_BLOCK_NAMES = ("load", "position_friction", "speed", "inertia", "jerk", "reversal")
+
+
 def state_blocks(prep, j, kernels: int = STATE_KERNELS) -> dict:
     """The blocks of a free function of the state of joint ``j`` (columns at the joint's used rows), by name: ``load``
     (sin q, cos q and ``kernels`` Gaussian kernels in q over the training range), ``position_friction`` (the same
@@ -613,6 +617,10 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, wit
     n0 = len(nominal_names(prep.robot_kind))
     jd = prep.joints[j]
     X = model.design_with_shared(j)
+    unknown = sorted(set(without) - set(STATE_BLOCK_NAMES))
+    if unknown:
+        raise ValueError(f"state_nuisance: no state block named {', '.join(unknown)} "
+                         f"(the blocks: {', '.join(STATE_BLOCK_NAMES)})")
     blocks = {k: B for k, B in state_blocks(prep, j, kernels).items() if k not in without}
     best, _ = _fit_rss(X, jd.y, jd.train, jd.val, n0, solve)
     cols = []
