@@ -286,6 +286,12 @@ def _row(k, family, robot, spec, log, d, dt, not_visible=None):
          "noise": spec.get("noise", "gaussian"), "noise_std": spec.get("noise_std"),
          "unexplained": [u.get("variable") for u in d["unexplained"]],
          "set_aside": [x.get("effect") for x in d.get("set_aside") or []], **j}
+    # the inertia backfit's move, per joint where it moved J ([J identified by prepare, J after the backfit]; rows
+    # since the thirty-sixth round): a change to core.backfit_inertia can only touch the logs that record one
+    backfit = {j: [p["J_before_backfit"], p["J"]] for j, p in ((d.get("nominal") or {}).get("parameters") or {}).items()
+               if "J_before_backfit" in p}
+    if backfit:
+        r["inertia_backfit"] = backfit
     if nv:
         r["not_visible"] = nv
     return r
