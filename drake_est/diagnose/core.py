@@ -1524,6 +1524,15 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
     blocked, set_aside = set(), []
     time_alt_done, time_alt = False, None
     n_weak = 0
+
+    def close_and_search(effect, joint, entry):
+        """Close ``effect`` on ``joint`` (None: a shared one), record ``entry`` among the findings set aside and run
+        the search again without it."""
+        blocked.add((effect, joint))
+        set_aside.append(entry)
+        prep.meta.pop("payload_ext", None)
+        return _search(prep, max_findings, alpha, min_gain, blocked)
+
     while True:
         # every finding against the others (the forward search is greedy): a finding set aside is closed for its
         # joint and the search run again, at most MAX_SET_ASIDE times
@@ -1539,10 +1548,7 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
                 checked = True
                 break
             effect, joint, why = bad
-            blocked.add((effect, joint))
-            set_aside.append({"effect": effect, "joint": int(joint), **why})
-            prep.meta.pop("payload_ext", None)
-            out = _search(prep, max_findings, alpha, min_gain, blocked)
+            out = close_and_search(effect, joint, {"effect": effect, "joint": int(joint), **why})
             ambiguous = {}      # marks of a model that was just replaced
         # a law in time ambiguous with the other one, whose rival in its place needs fewer findings
         # (time_law_alternative): the alternative is kept, the rival ambiguous with it; once per diagnosis
@@ -1613,22 +1619,16 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
                 mark_not_separated_under_misfit(out[3], unexplained)
                 break
             effect, joint, why = state
-            blocked.add((effect, joint))
-            set_aside.append({"effect": effect, "joint": int(joint), **why})
-            prep.meta.pop("payload_ext", None)
-            out = _search(prep, max_findings, alpha, min_gain, blocked)
+            out = close_and_search(effect, joint, {"effect": effect, "joint": int(joint), **why})
             continue
         n_weak += 1
         st, where = weak
-        blocked.add((st.ext.effect, None if st.ext.shared else st.ext.joint))
-        set_aside.append({
+        out = close_and_search(st.ext.effect, None if st.ext.shared else st.ext.joint, {
             "effect": st.ext.effect, "joint": int(st.ext.joint) if not st.ext.shared else None,
             "reason": (f"not confirmed: it lowered the held-out RMSE by {100 * st.test['rmse_reduction']:.1f} % "
                        f"(< {100 * MIN_GAIN_NOT_WHITE:g} %) while the final residual still holds structure "
                        f"({_structure_text(where)}), which a candidate can soak up in part"),
             "not_confirmed": True, "heldout_rmse_reduction": float(st.test["rmse_reduction"])})
-        prep.meta.pop("payload_ext", None)
-        out = _search(prep, max_findings, alpha, min_gain, blocked)
     prep.meta["set_aside"] = set_aside
     fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma = out
     timing = {"prepare_s": t_prep, "total_s": time.perf_counter() - t0, "alpha": alpha, "min_gain": min_gain}
