@@ -1,0 +1,153 @@
+"""Where the inertia backfit moves J, and whether the rows of large acceleration tell the same J (tried after the
+thirty-sixth round, not kept: ``diagnose_inertia_backfit_confirm_tried.patch``).
+
+For closed-loop benchmark logs (by default every kept row that records a backfit move, ``inertia_backfit``, plus
+``--k``), the diagnosis is run with a probe around :func:`drake_est.diagnose.core.backfit_inertia` that records, at
+its call, the J that the same fit gives on: all training rows (the backfit's estimate), the held-out rows, and the
+training rows of the 50 %, 20 % and 10 % largest |qdd|; beside them prepare's J, the generator's J and the rule's
+decision.  The probe returns what the backfit returns, so the diagnosis is the same as without it.  The summary
+also applies the tried rule to the recorded numbers (``tried_confirm``: the move only when J + dJ > 0 and the
+rows of the 20 % largest |qdd| give a positive J within a factor 2 of it).
+
+    python benchmarks/probe_inertia_backfit.py --json benchmarks/results/diagnose_inertia_backfit_probe.json \\
+        --k 11834
+
+Prints, per estimator, how many logs end with J within a factor 1.5 of the generator's, and the logs that do not.
+"""
+import argparse
+import json
+import math
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import bench_diagnose_testbench as b  # noqa: E402
+
+#: the subsets of training rows a J is estimated on: name -> share of the largest |qdd| (1.0: all)
+SUBSETS = {"train": 1.0, "top50": 0.5, "top20": 0.2, "top10": 0.1}
+
+
+def correction(A, y):
+    """(coefficient, standard error) of A's first column in the least-squares fit of y on A (QR), or None when
+    that column is not excited or A is rank deficient (the backfit's own test)."""
+    import scipy.linalg
+    if A.shape[0] <= A.shape[1]:
+        return None
+    Qr, R = np.linalg.qr(A)
+    d = np.abs(np.diag(R))
+    if d[0] < 1e-12 or np.min(d) < 1e-10 * np.max(d):
+        return None
+    c = scipy.linalg.solve_triangular(R, Qr.T @ y)
+    e = y - A @ c
+    s2 = float(e @ e) / max(A.shape[0] - A.shape[1], 1)
+    r_inv0 = scipy.linalg.solve_triangular(R.T, np.eye(A.shape[1])[:, 0], lower=True)
+    return float(c[0]), float(np.sqrt(s2 * (r_inv0 @ r_inv0)))
+
+
+def probe_call(prep, model, out) -> dict:
+    """{joint: record} of one backfit call: prepare's J, the rule's move (or None) and the J of each subset."""
+    from drake_est.diagnose import core
+    rec = {}
+    for j, jd in prep.joints.items():
+        J = jd.counts.get("inertia")
+        if J is None:
+            continue
+        qdd = jd.a[jd.rows]
+        A = np.column_stack([qdd, model.design_with_shared(j)])
+        r = {"J_prepare": float(J), "moved_to": out[j][1] if j in out else None}
+        a_tr = np.abs(qdd[jd.train])
+        for name, share in SUBSETS.items():
+            m = jd.train & (np.abs(qdd) >= np.quantile(a_tr, 1.0 - share)) if share < 1.0 else jd.train
+            est = correction(A[m], jd.y[m])
+            r[f"J_{name}"] = None if est is None else float(J + est[0])
+            if name == "train" and est is not None:
+                dJ, se = est
+                r["old_rule_moves"] = bool(abs(dJ) > core.INERTIA_BACKFIT_Z * se
+                                           and abs(dJ) > core.INERTIA_BACKFIT_REL * abs(J))
+        est = correction(A[jd.val], jd.y[jd.val])
+        r["J_val"] = None if est is None else float(J + est[0])
+        rec[str(j)] = r
+    return rec
+
+
+def run(ks):
+    from drake_est.diagnose import core, diagnose
+    orig = core.backfit_inertia
+    calls = []
+
+    def probed(prep, model, fit):
+        out = orig(prep, model, fit)
+        calls.append(probe_call(prep, model, out))
+        return out
+
+    core.backfit_inertia = probed
+    rows = []
+    try:
+        for k in ks:
+            calls.clear()
+            spec = b.loop_cases(k + 1)[k]
+            log, truth = b.loop_log(spec)
+            d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+            row = {"k": k, "truth": b._label(spec["effects"], truth["not_visible"]), "got": b._got(d),
+                   "J_generator": float(truth["J"]), "calls": list(calls)}
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    finally:
+        core.backfit_inertia = orig
+    return rows
+
+
+def summary(rows) -> dict:
+    """Per estimator: logs within a factor 1.5 of the generator's J and those that are not (first call, joint 1)."""
+    def final(r, key):
+        J = r["J_prepare"]
+        if key == "prepare":
+            return J
+        if key == "old_rule":
+            return r["J_train"] if r.get("old_rule_moves") else J
+        if key == "rule":
+            return r["moved_to"] if r["moved_to"] is not None else J
+        if key == "tried_confirm":
+            Jn, Jt = r["J_train"], r["J_top20"]
+            ok = r.get("old_rule_moves") and Jn > 0 and Jt is not None and Jt > 0 and max(Jn / Jt, Jt / Jn) <= 2.0
+            return Jn if ok else J
+        return r.get(f"J_{key}")
+    out = {}
+    recs = [(row["k"], row["J_generator"], c) for row in rows if row["calls"] for c in row["calls"][:1]
+            for c in c.values()]
+    for key in ("prepare", "old_rule", "rule", "tried_confirm", "train", "val", "top50", "top20", "top10"):
+        bad = []
+        for k, Jg, r in recs:
+            J = final(r, key)
+            if J is None or J <= 0 or abs(math.log(J / Jg)) > math.log(1.5):
+                bad.append(k)
+        out[key] = {"within_1.5x": len(recs) - len(bad), "logs": len(recs), "not": bad}
+        print(f"{key:9s} J within a factor 1.5 of the generator's: {len(recs) - len(bad):3d} / {len(recs)}  "
+              f"not: {bad}")
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--json", default=None)
+    ap.add_argument("--k", type=int, nargs="*", default=[], help="more closed-loop spec indices")
+    ap.add_argument("--only-k", type=int, nargs="*", default=None, help="these spec indices only")
+    args = ap.parse_args(argv)
+    if args.only_k is not None:
+        ks = list(args.only_k)
+    else:
+        ks = sorted({r["k"] for key, (_, r) in b.kept_rows_naming("any").items()
+                     if key[0] == "loop" and "inertia_backfit" in r} | set(args.k))
+    rows = run(ks)
+    out = {"what": "inertia backfit probe (benchmarks/probe_inertia_backfit.py)", "logs": len(rows),
+           "summary": summary(rows), "rows": rows}
+    if args.json:
+        from drake_est.jsonutil import dump_json
+        dump_json(out, args.json)
+
+
+if __name__ == "__main__":
+    main()
