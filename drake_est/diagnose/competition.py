@@ -815,10 +815,13 @@ def _partial_test(prep, model, j, N, C, alpha, min_gain, solve=None, weights=Non
 PAIRED_GROUPS = 20
 
 
-def _group_diffs(prep, fit_a, fit_b, joints) -> list:
+def _group_diffs(prep, fit_a, fit_b, joints, loss: str = "squared") -> list:
     """Per joint of ``joints``: (joint, group of each held-out sample, per-group ``sum e_a^2 - sum e_b^2`` scaled by
     ``fit_a``'s held-out variance) over at most :data:`PAIRED_GROUPS` groups of contiguous validation blocks (the
-    units of :func:`paired_block_test` and :func:`gain_concentration`)."""
+    units of :func:`paired_block_test` and :func:`gain_concentration`); ``loss="absolute"``: ``sum |e_a| - sum
+    |e_b|`` scaled by ``fit_a``'s held-out mean absolute error."""
+    if loss not in ("squared", "absolute"):
+        raise ValueError(f"loss must be 'squared' or 'absolute', got {loss!r}")
     from drake_est.diagnose.nominal import block_index
 
     out = []
@@ -827,24 +830,28 @@ def _group_diffs(prep, fit_a, fit_b, joints) -> list:
         val = jd.val
         ea = (jd.y - fit_a.pred[j])[val]
         eb = (jd.y - fit_b.pred[j])[val]
-        s2 = max(float(np.mean(ea ** 2)), 1e-300)
         blk = block_index(jd.t, jd.rows)[val]
         ub, inv = np.unique(blk, return_inverse=True)
         group = (inv * min(PAIRED_GROUPS, ub.size)) // ub.size
-        d = (ea ** 2 - eb ** 2) / s2
+        if loss == "absolute":
+            d = (np.abs(ea) - np.abs(eb)) / max(float(np.mean(np.abs(ea))), 1e-300)
+        else:
+            d = (ea ** 2 - eb ** 2) / max(float(np.mean(ea ** 2)), 1e-300)
         out.append((j, group, np.bincount(group, weights=d)))
     return out
 
 
-def paired_block_test(prep, fit_a, fit_b, joints) -> dict:
+def paired_block_test(prep, fit_a, fit_b, joints, loss: str = "squared") -> dict:
     """Does ``fit_b`` predict the held-out data of ``joints`` better than ``fit_a`` beyond chance?  Two
     non-nested models (e.g. the same findings with one of two rival extensions) are compared by their squared
     errors paired over the held-out time blocks: per group of contiguous validation blocks (at most
     :data:`PAIRED_GROUPS` per joint, each joint's errors scaled by ``fit_a``'s held-out variance) the difference
     ``sum e_a^2 - sum e_b^2``; a one-sided Wilcoxon signed-rank test of these differences over the groups.  The
     groups, not the samples, are the independent units: a closed-loop residual is correlated within a move.
-    Returns ``{"statistic", "p_value", "groups", "groups_better"}`` (p = 1 when fewer than 3 groups)."""
-    diffs = [g for _, _, g in _group_diffs(prep, fit_a, fit_b, joints)]
+    ``loss="absolute"`` pairs the absolute errors instead (:func:`_group_diffs`): under heavy-tailed noise a few
+    large errors carry a squared-error gain.  Returns ``{"statistic", "p_value", "groups", "groups_better"}`` (p = 1
+    when fewer than 3 groups)."""
+    diffs = [g for _, _, g in _group_diffs(prep, fit_a, fit_b, joints, loss)]
     d = np.concatenate(diffs) if diffs else np.zeros(0)
     if d.size < 3 or not np.any(d):
         return {"statistic": 0.0, "p_value": 1.0, "groups": int(d.size), "groups_better": 0}

@@ -464,9 +464,12 @@ def markdown(d: dict) -> str:
         L += ["", "## Findings set aside"]
         groups = (("Each finding is checked against the others (and a disturbance in time against a function of "
                    "its joint's state): these were explained by them or not separated from a simpler rival.",
-                   [r for r in d["set_aside"] if not r.get("not_confirmed")]),
+                   [r for r in d["set_aside"] if not r.get("not_confirmed") and not r.get("gain_in_few_samples")]),
                   ("Small findings are not confirmed while the final residual still holds structure:",
-                   [r for r in d["set_aside"] if r.get("not_confirmed")]))
+                   [r for r in d["set_aside"] if r.get("not_confirmed")]),
+                  ("A later finding whose held-out gain sits in a few large errors must also lower the absolute "
+                   "errors (heavy-tailed noise):",
+                   [r for r in d["set_aside"] if r.get("gain_in_few_samples")]))
         for intro, rows in groups:
             if rows:
                 L += ["", intro, ""]
