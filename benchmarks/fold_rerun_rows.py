@@ -38,12 +38,9 @@ def differing_rows(rerun_jsons) -> dict:
     missing = [k for k in new if k not in kept]
     if missing:
         raise SystemExit(f"{len(missing)} rerun rows have no kept row, e.g. {missing[0]}")
-    out = {}
-    for key, r in new.items():
-        name, old = kept[key]
-        if any(old.get(c) != r.get(c) for c in b.ROW_OUTCOME):
-            out[key] = (name, r)
-    return out
+    # the bench's own comparison (ROW_OUTCOME, ``unexplained`` as a set: its order is not an outcome)
+    diffs = b.row_differences(kept, list(new.values()))
+    return {(x["family"], x["robot"], x["k"]): (x["json"], new[(x["family"], x["robot"], x["k"])]) for x in diffs}
 
 
 def fold(changes: dict, dry_run: bool = False) -> dict:
