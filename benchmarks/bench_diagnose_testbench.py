@@ -244,9 +244,14 @@ def readme_table(summary, source="diagnose_testbench.json") -> list:
          "null logs clean |", "|---|---|---|---|---|---|---|"]
     items = list(summary["per_family"].items()) + [("all", summary)]
     for name, s in items:
-        L.append(f"| {name} | {s['logs']} | {s['correct']} | {s['wrong_names']} | {s['missed']} | "
-                 f"{s['oov_unexplained_right']} / {s['oov_logs']} | {s['null_logs_clean']} / {s['null_logs']} |")
+        L.append(f"| {name}" + count_cells(s))
     return L
+
+
+def count_cells(s) -> str:
+    """The count cells of a run-table row for a summary ``s``: `` | logs | correct | wrong | missed | oov | null |``."""
+    return (f" | {s['logs']} | {s['correct']} | {s['wrong_names']} | {s['missed']} | "
+            f"{s['oov_unexplained_right']} / {s['oov_logs']} | {s['null_logs_clean']} / {s['null_logs']} |")
 
 
 def _print(summary):

@@ -82,8 +82,7 @@ def update_tables(files: dict, label: str | None, dry_run: bool = False) -> list
         h = b.summarize(json.loads((ROOT / "benchmarks" / "results" / f).read_text())["rows"])
         run = re.match(r"^\| (.+) \(`" + re.escape(f) + r"`\) \| ", st)
         if run:
-            counts = (f" | {h['logs']} | {h['correct']} | {h['wrong_names']} | {h['missed']} | "
-                      f"{h['oov_unexplained_right']} / {h['oov_logs']} | {h['null_logs_clean']} / {h['null_logs']} |")
+            counts = b.count_cells(h)
             if st.endswith(counts):
                 continue
             lab = run.group(1) + (f"; {label}: {', '.join(map(str, files[f]))}" if label else "")

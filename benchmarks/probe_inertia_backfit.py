@@ -31,20 +31,10 @@ SUBSETS = {"train": 1.0, "top50": 0.5, "top20": 0.2, "top10": 0.1}
 
 
 def correction(A, y):
-    """(coefficient, standard error) of A's first column in the least-squares fit of y on A (QR), or None when
-    that column is not excited or A is rank deficient (the backfit's own test)."""
-    import scipy.linalg
-    if A.shape[0] <= A.shape[1]:
-        return None
-    Qr, R = np.linalg.qr(A)
-    d = np.abs(np.diag(R))
-    if d[0] < 1e-12 or np.min(d) < 1e-10 * np.max(d):
-        return None
-    c = scipy.linalg.solve_triangular(R, Qr.T @ y)
-    e = y - A @ c
-    s2 = float(e @ e) / max(A.shape[0] - A.shape[1], 1)
-    r_inv0 = scipy.linalg.solve_triangular(R.T, np.eye(A.shape[1])[:, 0], lower=True)
-    return float(c[0]), float(np.sqrt(s2 * (r_inv0 @ r_inv0)))
+    """The backfit's own estimate (:func:`drake_est.diagnose.core.first_coefficient`) on a subset of rows; None also
+    when the subset has no more rows than columns."""
+    from drake_est.diagnose.core import first_coefficient
+    return None if A.shape[0] <= A.shape[1] else first_coefficient(A, y)
 
 
 def probe_call(prep, model, out) -> dict:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from drake_est.diagnose import competition as comp
-from drake_est.diagnose import core
+from drake_est.diagnose import core, diagnose
 from drake_est.diagnose.core import run_diagnosis
 from drake_est.diagnose.report import markdown
 
@@ -54,20 +54,16 @@ def test_a_gain_in_a_few_heavy_tailed_samples_is_not_named(ulps):
     # level was named beside it (7.1 % lower held-out RMSE, 88 % of the gain in 5 of 133 held-out samples)
     mod, spec, _, _ = closed_loop_case(11752)
     log, _ = mod.loop_log(spec, reference_ulps=ulps)
-    d = run_diagnosis(log, robot="generic")
+    rep = diagnose(log, robot="generic", seed=0, simulate=False)
+    d = rep.result
     assert [st.ext.effect for st in d.steps] == ["position_dependent_load"]
     few = [x for x in d.prep.meta["set_aside"] if x.get("gain_in_few_samples")]
     assert [(x["effect"], x["joint"]) for x in few] == [("asymmetric_coulomb", 1)]
     assert few[0]["share_of_squared_error_gain"] >= core.FEW_SAMPLES_GAIN
     assert few[0]["paired_p_value_absolute"] >= core.PAIRED_ALPHA
     assert few[0]["heavy_tails_p_value"] < core.HEAVY_TAILS_ALPHA
-    md = markdown(_report_dict(log))
+    md = markdown(rep.to_dict())
     assert "a few large errors" in md and "asymmetric_coulomb (joint 1)" in md and "heavy-tailed" in md
-
-
-def _report_dict(log):
-    from drake_est.diagnose import diagnose
-    return diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
 
 
 def test_a_real_later_finding_under_heavy_tails_is_kept():

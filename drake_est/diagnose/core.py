@@ -915,22 +915,28 @@ def backfit_inertia(prep, model, fit) -> dict:
             continue
         X = model.design_with_shared(j)
         tr = jd.train
-        A = np.column_stack([jd.a[jd.rows], X])[tr]
-        y = jd.y[tr]
-        Qr, R = np.linalg.qr(A)
-        if abs(R[0, 0]) < 1e-12 or np.min(np.abs(np.diag(R))) < 1e-10 * np.max(np.abs(np.diag(R))):
+        est = first_coefficient(np.column_stack([jd.a[jd.rows], X])[tr], jd.y[tr])
+        if est is None:
             continue    # qdd not excited on the selected rows, or collinear with the model: keep J
-        c = scipy.linalg.solve_triangular(R, Qr.T @ y)
-        e = y - A @ c
-        dof = max(A.shape[0] - A.shape[1], 1)
-        s2 = float(e @ e) / dof
-        # standard error of c[0]: sqrt(s2 * [(R^T R)^-1]_00), from the first row of R^-1
-        r_inv0 = scipy.linalg.solve_triangular(R.T, np.eye(A.shape[1])[:, 0], lower=True)
-        se = float(np.sqrt(s2 * (r_inv0 @ r_inv0)))
-        dJ = float(c[0])
+        dJ, se = est
         if abs(dJ) > INERTIA_BACKFIT_Z * se and abs(dJ) > INERTIA_BACKFIT_REL * abs(J):
             out[j] = (float(J), float(J + dJ))
     return out
+
+
+def first_coefficient(A, y):
+    """(coefficient, standard error) of A's first column in the least-squares fit of y on A (QR, no inverse), or
+    None when that column is not excited or A is numerically rank deficient (:func:`backfit_inertia`'s estimate)."""
+    Qr, R = np.linalg.qr(A)
+    if abs(R[0, 0]) < 1e-12 or np.min(np.abs(np.diag(R))) < 1e-10 * np.max(np.abs(np.diag(R))):
+        return None
+    c = scipy.linalg.solve_triangular(R, Qr.T @ y)
+    e = y - A @ c
+    dof = max(A.shape[0] - A.shape[1], 1)
+    s2 = float(e @ e) / dof
+    # standard error of c[0]: sqrt(s2 * [(R^T R)^-1]_00), from the first row of R^-1
+    r_inv0 = scipy.linalg.solve_triangular(R.T, np.eye(A.shape[1])[:, 0], lower=True)
+    return float(c[0]), float(np.sqrt(s2 * (r_inv0 @ r_inv0)))
 
 
 #: a law in time may leave the friction torque kc + kv |qd| below zero by at most this many noise standard deviations
@@ -1377,25 +1383,25 @@ def gain_in_few_samples(prep, steps, model, fit, sigma):
     whose absolute errors do not show the gain (p >= :data:`PAIRED_ALPHA`) as ``(step, why)``, else None (loop spec
     11752: an asymmetric level beside a load at 10 Hz with Student-t noise, 7.1 % lower held-out RMSE, 88 % of it in
     5 of 133 held-out samples)."""
-    seen = set()
-    for st in steps:
+    for st, _ in _later_steps(steps):
         e = st.ext
-        js = {int(j) for j in e.cols}
-        later = bool(js & seen)
-        seen |= js
-        if not later or e.shared or not any(x is e for x in model.exts):
+        if e.shared or not any(x is e for x in model.exts):
             continue
         j = e.joint
         jd = prep.joints[j]
-        f0 = Model(prep, [x for x in model.exts if x is not e]).fit(sigma)
-        ea = (jd.y - f0.pred[j])[jd.val]
         eb = (jd.y - fit.pred[j])[jd.val]
-        g = ea ** 2 - eb ** 2
-        total = float(g.sum())
-        if g.size < 20 or total <= 0:
+        if eb.size < 20:
             continue
+        # the final residual alone decides whether the check applies: tested before the model without the finding
+        # is fitted
         tails = float(scipy.stats.kurtosistest(eb, alternative="greater").pvalue)
         if not tails < HEAVY_TAILS_ALPHA:
+            continue
+        f0 = Model(prep, [x for x in model.exts if x is not e]).fit(sigma)
+        ea = (jd.y - f0.pred[j])[jd.val]
+        g = ea ** 2 - eb ** 2
+        total = float(g.sum())
+        if total <= 0:
             continue
         k = max(1, int(np.ceil(FEW_SAMPLES_SHARE * g.size)))
         share = float(np.sort(g)[::-1][:k].sum()) / total
@@ -1426,13 +1432,19 @@ def _later_on_structure(steps, unexplained):
     where = {}
     for u in unexplained:
         where.setdefault(int(u["joint"]), []).append(u["variable"])
-    out, seen = [], set()
+    return [(st, {j: where[j] for j in sorted(js & where.keys())}) for st, js in _later_steps(steps)
+            if js & where.keys()]
+
+
+def _later_steps(steps):
+    """(step, its joints) for every finding accepted after another one on one of its joints, in the order of
+    acceptance ``steps``."""
+    seen = set()
     for st in steps:
         js = {int(j) for j in st.ext.cols}
-        if js & seen and js & where.keys():
-            out.append((st, {j: where[j] for j in sorted(js & where.keys())}))
+        if js & seen:
+            yield st, js
         seen |= js
-    return out
 
 
 def _structure_text(where) -> str:
