@@ -1,7 +1,7 @@
 """Interval regression of quantized readings (quantization.interval_fit, interval_loglik): least squares on a torque
 rounded by a coarse ADC is biased when the noise before the ADC is small against its step; the likelihood of the
-readings themselves is not.  (The thirty-eighth round's check built on it, core.gain_within_rounding, was tried and
-not kept: benchmarks/results/diagnose_gain_within_rounding_round38_v2_tried.patch.)"""
+readings themselves is not.  The diagnosis' check built on it (core.gain_within_rounding, kept in the thirty-ninth
+round) is tested in tests/test_diagnose_gain_within_rounding.py."""
 import numpy as np
 import pytest
 import scipy.stats
@@ -70,6 +70,22 @@ def test_interval_fit_of_a_nested_model_started_at_the_smaller_one_is_no_worse()
     nll0 = interval_nll_at(X0, c0, s0, yq - step / 2, yq + step / 2)
     nll1 = interval_nll_at(X1, c1, s1, yq - step / 2, yq + step / 2)
     assert nll1 <= nll0 and abs(c1[2] - 0.8) < 0.1 and s1 < s0
+
+
+def test_interval_fit_with_a_ridge_and_fine_steps_is_ridge_least_squares():
+    # the penalty sum(w coef^2) / (2 sigma^2) is the least-squares ridge as a Gaussian prior: with steps far below the
+    # noise its optimum solves (X'X + diag(w)) coef = X'y, and an unpenalized column (w = 0) is left free
+    rng = np.random.default_rng(5)
+    n = 2000
+    X = np.column_stack([np.ones(n), rng.normal(size=n), rng.normal(size=n)])
+    y = X @ np.array([1.0, 0.5, -0.3]) + rng.normal(0.0, 0.2, n)
+    step = 1e-5
+    yq = step * np.round(y / step)
+    w = np.array([0.0, 300.0, 3000.0])
+    coef, _ = interval_fit(X, yq - step / 2, yq + step / 2, ridge=w)
+    expect = np.linalg.solve(X.T @ X + np.diag(w), X.T @ yq)
+    assert np.allclose(coef, expect, atol=2e-4)
+    assert abs(coef[2]) < 0.2 and abs(coef[2] - expect[2]) < 2e-4      # shrunk from -0.3 by its weight
 
 
 def test_interval_fit_refuses_bad_intervals():

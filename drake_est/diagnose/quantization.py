@@ -63,8 +63,9 @@ def interval_nll_at(X, coef, sigma: float, lo, hi) -> float:
     return -float(np.sum(interval_loglik(X, coef, sigma, lo, hi)))
 
 
-def _nll_and_grad(theta, X, lo, hi):
-    """Negative log-likelihood of :func:`interval_loglik` and its gradient in (coef, log sigma)."""
+def _nll_and_grad(theta, X, lo, hi, ridge=None):
+    """Negative log-likelihood of :func:`interval_loglik` and its gradient in (coef, log sigma); ``ridge``: per-column
+    weights w of a penalty sum(w coef^2) / (2 sigma^2) (the least-squares ridge as a Gaussian prior)."""
     b, log_s = theta[:-1], theta[-1]
     s = np.exp(log_s)
     mu = X @ b
@@ -76,18 +77,25 @@ def _nll_and_grad(theta, X, lo, hi):
     pc = np.exp(np.minimum(-0.5 * c * c - _LOG_SQRT_2PI - lp, 700.0))
     d_mu = (pc - pa) / s                 # -(d lp / d mu)
     d_logs = c * pc - a * pa             # -(d lp / d log s)
-    return -float(lp.sum()), np.concatenate([X.T @ d_mu, [float(d_logs.sum())]])
+    f, g_b, g_s = -float(lp.sum()), X.T @ d_mu, float(d_logs.sum())
+    if ridge is not None:
+        pen = float(ridge @ (b * b))
+        f += 0.5 * pen / (s * s)
+        g_b = g_b + ridge * b / (s * s)
+        g_s -= pen / (s * s)
+    return f, np.concatenate([g_b, [g_s]])
 
 
-def interval_fit(X, lo, hi, coef0=None, nonneg=(), sigma0=None, max_iter: int = 1000):
+def interval_fit(X, lo, hi, coef0=None, nonneg=(), sigma0=None, ridge=None, max_iter: int = 1000):
     """Maximum-likelihood fit of ``X @ coef`` with Gaussian noise of unknown standard deviation to interval readings
     ``[lo, hi]`` (interval regression, an ordered probit with known cut points).  With the intervals of a quantized
     signal it uses what the readings hold, and no more: least squares on the rounded values treats the rounding
     error as noise, which it is not when the noise before the ADC is small against its step.  ``coef0``: start
     (default: least squares on the interval midpoints, with the bounds), ``sigma0`` its noise level; ``nonneg``: columns
-    whose coefficients are kept >= 0.  A nested model started from the smaller one's optimum (its coefficients, zeros
-    for the new columns) cannot end with a lower likelihood than it (the optimizer only descends from there).  Returns
-    ``(coef, sigma)``; raises ValueError on empty or inverted intervals."""
+    whose coefficients are kept >= 0; ``ridge``: per-column weights w of a penalty sum(w coef^2) / (2 sigma^2) (a
+    least-squares ridge, :func:`drake_est.regression.ridge_solve`, carried over as a Gaussian prior).  A nested model
+    started from the smaller one's optimum (its coefficients, zeros for the new columns) cannot end with a lower
+    likelihood than it (the optimizer only descends from there).  Returns ``(coef, sigma)``; raises ValueError on empty or inverted intervals."""
     X = np.asarray(X, float)
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     if X.ndim != 2 or X.shape[0] != lo.size or lo.size != hi.size:
@@ -120,6 +128,8 @@ def interval_fit(X, lo, hi, coef0=None, nonneg=(), sigma0=None, max_iter: int = 
     # the start's sigma: the midpoints' residual, at least a tenth of the mean interval width (or ``sigma0``)
     s0 = max(float(np.std(r0)), 0.1 * width, 1e-12) if sigma0 is None else float(sigma0)
     s0 = float(np.clip(s0, *np.exp(log_s_bounds)))
-    res = scipy.optimize.minimize(_nll_and_grad, np.concatenate([b0, [np.log(s0)]]), args=(Xs, lo, hi),
+    # the ridge weights w of sum(w coef^2) in the scaled coefficients b = coef * scale
+    rw = None if ridge is None else np.asarray(ridge, float) / (scale * scale)
+    res = scipy.optimize.minimize(_nll_and_grad, np.concatenate([b0, [np.log(s0)]]), args=(Xs, lo, hi, rw),
                                   jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": max_iter})
     return res.x[:-1] / scale, float(np.exp(res.x[-1]))

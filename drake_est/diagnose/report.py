@@ -464,12 +464,16 @@ def markdown(d: dict) -> str:
         L += ["", "## Findings set aside"]
         groups = (("Each finding is checked against the others (and a disturbance in time against a function of "
                    "its joint's state): these were explained by them or not separated from a simpler rival.",
-                   [r for r in d["set_aside"] if not r.get("not_confirmed") and not r.get("gain_in_few_samples")]),
+                   [r for r in d["set_aside"] if not r.get("not_confirmed") and not r.get("gain_in_few_samples")
+                    and not r.get("within_rounding")]),
                   ("Small findings are not confirmed while the final residual still holds structure:",
                    [r for r in d["set_aside"] if r.get("not_confirmed")]),
                   ("A later finding whose held-out gain sits in a few large errors must also lower the absolute "
                    "errors (heavy-tailed noise):",
-                   [r for r in d["set_aside"] if r.get("gain_in_few_samples")]))
+                   [r for r in d["set_aside"] if r.get("gain_in_few_samples")]),
+                  ("A finding on a joint whose torque a coarse ADC rounds must also show on the likelihood of the "
+                   "quantized readings (each one within half a step of the torque):",
+                   [r for r in d["set_aside"] if r.get("within_rounding")]))
         for intro, rows in groups:
             if rows:
                 L += ["", intro, ""]
