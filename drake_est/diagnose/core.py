@@ -1506,7 +1506,6 @@ def later_position_law_within_finer_basis(prep, model, min_gain: float = MIN_GAI
     data as well as both).  The earlier law is refitted at the next finer size over the same range (its sign or its
     gravity harmonics as before) without the later one; when the model with both does not lower the joint's
     held-out RMSE by ``min_gain`` against it, the later law is returned as ``(ext, why)``, else None."""
-    from drake_est.diagnose.detectors import BFE_SIZES, Extension, _sgn, gaussian_features
     fit = None
     for j, jd in prep.joints.items():
         laws = [e for e in model.own(j) if e.effect in comp.POSITION_LAWS]
@@ -1516,22 +1515,11 @@ def later_position_law_within_finer_basis(prep, model, min_gain: float = MIN_GAI
         centers = first.spec.get("centers")
         if not centers or len(centers) < 2:
             continue
-        finer = [k for k in BFE_SIZES if k > len(centers)]
+        finer = [k for k in det.BFE_SIZES if k > len(centers)]
         if not finer:
             continue
         K = finer[0]
-        lo, hi = float(centers[0]), float(centers[-1])
-        c2, width = np.linspace(lo, hi, K), (hi - lo) / (K - 1)
-        q = jd.q[jd.rows]
-        Phi = gaussian_features(q, c2, width)
-        if first.spec.get("gravity_harmonic"):
-            C = np.column_stack([np.sin(q), np.cos(q), Phi])
-            names = first.names[:2] + [f"{first.names[2][:1]}{k}" for k in range(K)]
-        else:
-            C = _sgn(jd.v[jd.rows])[:, None] * Phi
-            names = [f"{first.names[0][:1]}{k}" for k in range(K)]
-        refined = Extension(first.effect, j, {j: C}, names,
-                            {**first.spec, "centers": c2.tolist(), "width": float(width)}, first.evidence)
+        refined = det.position_kernels_at(jd, first.effect, K, float(centers[0]), float(centers[-1]))
         if fit is None:
             fit = model.fit()
         n_val = max(int(jd.val.sum()), 1)

@@ -104,27 +104,22 @@ def asymmetric(jd, r):
                      {"negative_velocity_samples": n_neg})
 
 
-def _position_kernels(jd, fit_inner, effect, prefix, signed):
-    """Gaussian kernels in position over the training range, optionally times sign(qd); the number of
-    kernels (BFE_SIZES) chosen by ``fit_inner``. None when the joint spans less than 0.02."""
+#: the position laws built from Gaussian kernels in q: effect -> (parameter prefix, times sign(qd))
+POSITION_KERNEL_LAWS = {"position_dependent_friction": ("w", True), "position_dependent_load": ("g", False)}
+
+
+def position_kernels_at(jd, effect, K, lo, hi):
+    """The extension of the position law ``effect`` (:data:`POSITION_KERNEL_LAWS`) with ``K`` Gaussian kernels spread
+    evenly over [lo, hi] of arm position, times sign(qd) for a friction; a load also carries the gravity/spring
+    shape sin q, cos q exactly (a large gravity load is not fitted to the noise level by kernels alone, and what they
+    leave is named as other effects: issue 16 item 6)."""
+    prefix, signed = POSITION_KERNEL_LAWS[effect]
     q = jd.q[jd.rows]
-    lo, hi = np.quantile(q[jd.train], [0.002, 0.998])
-    span = hi - lo
-    if span < 0.02:
-        return None
+    centers = np.linspace(lo, hi, K)
+    width = (hi - lo) / (K - 1)
     s = _sgn(jd.v[jd.rows])[:, None] if signed else 1.0
-    # a direction-independent load carries the gravity/spring shape sin q, cos q exactly (a large gravity load is
-    # not fitted to the noise level by kernels alone, and what they leave is named as other effects: issue 16 item 6)
     H = np.empty((q.size, 0)) if signed else np.column_stack([np.sin(q), np.cos(q)])
-    best = None
-    for K in BFE_SIZES:
-        centers = np.linspace(lo, hi, K)
-        width = span / (K - 1)
-        C = np.hstack([H, s * gaussian_features(q, centers, width)])
-        err = fit_inner(C)
-        if best is None or err < best[0]:
-            best = (err, K, centers, width, C)
-    _, K, centers, width, C = best
+    C = np.hstack([H, s * gaussian_features(q, centers, width)])
     spec = {"effect": effect, "centers": centers.tolist(), "width": float(width)}
     names = [f"{prefix}{k}" for k in range(K)]
     if not signed:
@@ -134,17 +129,33 @@ def _position_kernels(jd, fit_inner, effect, prefix, signed):
                      {"n_kernels": int(K), "kernel_width_rad": float(width), "range_rad": [float(lo), float(hi)]})
 
 
+def _position_kernels(jd, fit_inner, effect):
+    """:func:`position_kernels_at` over the training range, the number of kernels (BFE_SIZES) chosen by
+    ``fit_inner``. None when the joint spans less than 0.02."""
+    q = jd.q[jd.rows]
+    lo, hi = np.quantile(q[jd.train], [0.002, 0.998])
+    if hi - lo < 0.02:
+        return None
+    best = None
+    for K in BFE_SIZES:
+        ext = position_kernels_at(jd, effect, K, lo, hi)
+        err = fit_inner(ext.cols[jd.joint])
+        if best is None or err < best[0]:
+            best = (err, ext)
+    return best[1]
+
+
 def position_bfe(jd, r, block_of_rows, fit_inner):
     """Gaussian kernels in arm position times sign(qd) (9.16); number of kernels chosen on the
     training part by an inner split (train blocks 0, 4, 8, ... vs 2, 6, 10, ...)."""
-    return _position_kernels(jd, fit_inner, "position_dependent_friction", "w", signed=True)
+    return _position_kernels(jd, fit_inner, "position_dependent_friction")
 
 
 def position_load(jd, r, fit_inner):
     """A direction-independent torque that depends on position (gravity, springs, cables): Gaussian
     kernels in position, not multiplied by sign(qd).  Used for generic axes, whose nominal model has no
     gravity; an added effect name (the vocabulary may grow)."""
-    return _position_kernels(jd, fit_inner, "position_dependent_load", "g", signed=False)
+    return _position_kernels(jd, fit_inner, "position_dependent_load")
 
 
 def ripple(jd, r, n_components=2, n_basis=None, fit_inner=None):
