@@ -468,8 +468,9 @@ def markdown(d: dict) -> str:
                     and not r.get("within_rounding")]),
                   ("Small findings are not confirmed while the final residual still holds structure:",
                    [r for r in d["set_aside"] if r.get("not_confirmed")]),
-                  ("A later finding whose held-out gain sits in a few large errors must also lower the absolute "
-                   "errors (heavy-tailed noise):",
+                  ("A later finding, or the only finding of a joint whose final residual still holds structure, "
+                   "whose held-out gain sits in a few large errors must also lower the absolute errors "
+                   "(heavy-tailed noise):",
                    [r for r in d["set_aside"] if r.get("gain_in_few_samples")]),
                   ("A finding on a joint whose torque a coarse ADC rounds must also show on the likelihood of the "
                    "quantized readings (each one within half a step of the torque):",
