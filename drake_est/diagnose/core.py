@@ -13,6 +13,7 @@
 """
 from __future__ import annotations
 
+import collections
 import time
 from dataclasses import dataclass, field
 
@@ -1397,10 +1398,7 @@ def sole_finding_gain_in_few_samples(prep, steps, model, fit, sigma, unexplained
     paired p = 0.32 on the absolute errors, 68 % of the final residual variance in its time correlation).  Returns
     ``(step, why)`` of the first such finding whose absolute errors do not show its gain, else None."""
     where = {int(u["joint"]) for u in unexplained}
-    per_joint = {}
-    for e in model.exts:
-        if not e.shared:
-            per_joint[e.joint] = per_joint.get(e.joint, 0) + 1
+    per_joint = collections.Counter(e.joint for e in model.exts if not e.shared)
     sole = [st for st in steps if not st.ext.shared and per_joint.get(st.ext.joint) == 1
             and int(st.ext.joint) in where]
     found = _first_gain_in_few_samples(prep, sole, model, fit, sigma)
@@ -1585,13 +1583,36 @@ def position_friction_within_speed_curve(prep, model, alpha, min_gain):
     the curve as well).  The round's own check (:func:`~drake_est.diagnose.competition.position_law_confounded`)
     tests a winner against the curve before the later findings are known, and only marks it ambiguous.  Returns the
     first such friction as ``(ext, why)``, else None."""
+    found = _first_within_speed_curve(prep, model, ("position_dependent_friction",), True, alpha, min_gain)
+    if found is None:
+        return None
+    e, t, own, back, n_cols = found
+    return e, {
+        "reason": (f"a free friction curve of the speed of joint {e.joint} explains it: given the other findings and "
+                   f"the curve ({n_cols} columns) it lowers the held-out RMSE by {100 * t['rmse_reduction']:.1f} % "
+                   f"(p = {t['p_value']:.2g}), not significantly (alone, given the other findings, by "
+                   f"{100 * own['rmse_reduction']:.1f} %), while the curve given it lowers it by "
+                   f"{100 * back['rmse_reduction']:.1f} %: the misfit of the Stribeck law's shape, which point-to-point "
+                   "moves make a function of position"),
+        "within_speed_curve": True, "position_law_given_speed_curve": comp._brief(t),
+        "speed_curve_given_position_law": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"],
+        "speed_curve_columns": n_cols}
+
+
+def _first_within_speed_curve(prep, model, effects, spread, alpha, min_gain):
+    """The first finding of the final ``model`` with an effect in ``effects`` (single-joint, on a joint whose model
+    also holds a Stribeck finding) whose columns do not predict the joint's held-out residual given the other findings
+    and a free friction curve of the speed (:func:`~drake_est.diagnose.competition.speed_law_nuisance`, ``spread``
+    knots or not), as ``(ext, test given the curve, test alone, test of the curve given it, curve columns)``; None
+    when there is none (the checks of :func:`position_friction_within_speed_curve` and
+    :func:`time_law_within_speed_curve`)."""
     for e in model.exts:
-        if e.effect != "position_dependent_friction" or e.shared:
+        if e.effect not in effects or e.shared:
             continue
         j = e.joint
         if not any(x.effect == "stribeck" and not x.shared and x.joint == j for x in model.exts):
             continue
-        N = comp.speed_law_nuisance(prep, j, spread=True)
+        N = comp.speed_law_nuisance(prep, j, spread=spread)
         if N is None:
             continue
         m0 = Model(prep, [x for x in model.exts if x is not e])
@@ -1602,16 +1623,7 @@ def position_friction_within_speed_curve(prep, model, alpha, min_gain):
         zero = np.zeros((N.shape[0], 0))
         own = comp._partial_test(prep, m0, j, zero, e.cols[j], alpha, min_gain, solve)
         back = comp._partial_test(prep, m0, j, e.cols[j], N, alpha, min_gain, solve)
-        return e, {
-            "reason": (f"a free friction curve of the speed of joint {j} explains it: given the other findings and "
-                       f"the curve ({N.shape[1]} columns) it lowers the held-out RMSE by "
-                       f"{100 * t['rmse_reduction']:.1f} % (p = {t['p_value']:.2g}), not significantly (alone, given "
-                       f"the other findings, by {100 * own['rmse_reduction']:.1f} %), while the curve given it lowers it "
-                       f"by {100 * back['rmse_reduction']:.1f} %: the misfit of the Stribeck law's shape, which "
-                       "point-to-point moves make a function of position"),
-            "within_speed_curve": True, "position_law_given_speed_curve": comp._brief(t),
-            "speed_curve_given_position_law": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"],
-            "speed_curve_columns": int(N.shape[1])}
+        return e, t, own, back, int(N.shape[1])
     return None
 
 
@@ -1627,34 +1639,21 @@ def time_law_within_speed_curve(prep, model, alpha, min_gain):
     the scan's longest time constant was named first, 45 % lower held-out RMSE in its round against the nominal
     model; given the load, Stribeck and the curve it lowers the held-out RMSE by -0.01 %).  Returns the first such law
     as ``(ext, why)``, else None."""
-    for e in model.exts:
-        if e.effect not in ("energy_dependent_friction", "abrupt_change") or e.shared:
-            continue
-        j = e.joint
-        if not any(x.effect == "stribeck" and not x.shared and x.joint == j for x in model.exts):
-            continue
-        N = comp.speed_law_nuisance(prep, j)
-        if N is None:
-            continue
-        m0 = Model(prep, [x for x in model.exts if x is not e])
-        solve = _model_solver(m0, j)
-        t = comp._partial_test(prep, m0, j, N, e.cols[j], alpha, min_gain, solve)
-        if t["significant"]:
-            continue
-        zero = np.zeros((N.shape[0], 0))
-        own = comp._partial_test(prep, m0, j, zero, e.cols[j], alpha, min_gain, solve)
-        back = comp._partial_test(prep, m0, j, e.cols[j], N, alpha, min_gain, solve)
-        return e, {
-            "reason": (f"a free friction curve of the speed of joint {j} explains it: given the other findings and "
-                       f"the curve ({N.shape[1]} columns) it lowers the held-out RMSE by "
-                       f"{100 * t['rmse_reduction']:.2f} % (p = {t['p_value']:.2g}), not significantly (alone, given "
-                       f"the other findings, by {100 * own['rmse_reduction']:.1f} %), while the curve given it lowers it "
-                       f"by {100 * back['rmse_reduction']:.1f} %: the misfit of the Stribeck law's shape, which a "
-                       "change over the log in the speeds the joint runs at makes a function of time"),
-            "within_speed_curve": True, "law_in_time_given_speed_curve": comp._brief(t),
-            "speed_curve_given_law_in_time": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"],
-            "speed_curve_columns": int(N.shape[1])}
-    return None
+    found = _first_within_speed_curve(prep, model, ("energy_dependent_friction", "abrupt_change"), False, alpha,
+                                      min_gain)
+    if found is None:
+        return None
+    e, t, own, back, n_cols = found
+    return e, {
+        "reason": (f"a free friction curve of the speed of joint {e.joint} explains it: given the other findings and "
+                   f"the curve ({n_cols} columns) it lowers the held-out RMSE by {100 * t['rmse_reduction']:.2f} % "
+                   f"(p = {t['p_value']:.2g}), not significantly (alone, given the other findings, by "
+                   f"{100 * own['rmse_reduction']:.1f} %), while the curve given it lowers it by "
+                   f"{100 * back['rmse_reduction']:.1f} %: the misfit of the Stribeck law's shape, which a change over "
+                   "the log in the speeds the joint runs at makes a function of time"),
+        "within_speed_curve": True, "law_in_time_given_speed_curve": comp._brief(t),
+        "speed_curve_given_law_in_time": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"],
+        "speed_curve_columns": n_cols}
 
 
 def _later_on_structure(steps, unexplained):
