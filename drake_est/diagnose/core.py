@@ -1583,29 +1583,19 @@ def position_friction_within_speed_curve(prep, model, alpha, min_gain):
     the curve as well).  The round's own check (:func:`~drake_est.diagnose.competition.position_law_confounded`)
     tests a winner against the curve before the later findings are known, and only marks it ambiguous.  Returns the
     first such friction as ``(ext, why)``, else None."""
-    found = _first_within_speed_curve(prep, model, ("position_dependent_friction",), True, alpha, min_gain)
-    if found is None:
-        return None
-    e, t, own, back, n_cols = found
-    return e, {
-        "reason": (f"a free friction curve of the speed of joint {e.joint} explains it: given the other findings and "
-                   f"the curve ({n_cols} columns) it lowers the held-out RMSE by {100 * t['rmse_reduction']:.1f} % "
-                   f"(p = {t['p_value']:.2g}), not significantly (alone, given the other findings, by "
-                   f"{100 * own['rmse_reduction']:.1f} %), while the curve given it lowers it by "
-                   f"{100 * back['rmse_reduction']:.1f} %: the misfit of the Stribeck law's shape, which point-to-point "
-                   "moves make a function of position"),
-        "within_speed_curve": True, "position_law_given_speed_curve": comp._brief(t),
-        "speed_curve_given_position_law": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"],
-        "speed_curve_columns": n_cols}
+    return _within_speed_curve(prep, model, ("position_dependent_friction",), True, alpha, min_gain, "position_law",
+                               "the misfit of the Stribeck law's shape, which point-to-point moves make a function of "
+                               "position", digits=1)
 
 
-def _first_within_speed_curve(prep, model, effects, spread, alpha, min_gain):
+def _within_speed_curve(prep, model, effects, spread, alpha, min_gain, law, cause, digits):
     """The first finding of the final ``model`` with an effect in ``effects`` (single-joint, on a joint whose model
     also holds a Stribeck finding) whose columns do not predict the joint's held-out residual given the other findings
     and a free friction curve of the speed (:func:`~drake_est.diagnose.competition.speed_law_nuisance`, ``spread``
-    knots or not), as ``(ext, test given the curve, test alone, test of the curve given it, curve columns)``; None
-    when there is none (the checks of :func:`position_friction_within_speed_curve` and
-    :func:`time_law_within_speed_curve`)."""
+    knots or not), as ``(ext, why)``: the reason (``cause``: what the finding took instead; its gain given the curve
+    with ``digits`` decimals) and the partial tests, keyed ``{law}_given_speed_curve`` and
+    ``speed_curve_given_{law}``; None when there is none (the checks of
+    :func:`position_friction_within_speed_curve` and :func:`time_law_within_speed_curve`)."""
     for e in model.exts:
         if e.effect not in effects or e.shared:
             continue
@@ -1623,7 +1613,15 @@ def _first_within_speed_curve(prep, model, effects, spread, alpha, min_gain):
         zero = np.zeros((N.shape[0], 0))
         own = comp._partial_test(prep, m0, j, zero, e.cols[j], alpha, min_gain, solve)
         back = comp._partial_test(prep, m0, j, e.cols[j], N, alpha, min_gain, solve)
-        return e, t, own, back, int(N.shape[1])
+        return e, {
+            "reason": (f"a free friction curve of the speed of joint {j} explains it: given the other findings and the "
+                       f"curve ({N.shape[1]} columns) it lowers the held-out RMSE by "
+                       f"{100 * t['rmse_reduction']:.{digits}f} % (p = {t['p_value']:.2g}), not significantly (alone, "
+                       f"given the other findings, by {100 * own['rmse_reduction']:.1f} %), while the curve given it "
+                       f"lowers it by {100 * back['rmse_reduction']:.1f} %: {cause}"),
+            "within_speed_curve": True, f"{law}_given_speed_curve": comp._brief(t),
+            f"speed_curve_given_{law}": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"],
+            "speed_curve_columns": int(N.shape[1])}
     return None
 
 
@@ -1639,21 +1637,9 @@ def time_law_within_speed_curve(prep, model, alpha, min_gain):
     the scan's longest time constant was named first, 45 % lower held-out RMSE in its round against the nominal
     model; given the load, Stribeck and the curve it lowers the held-out RMSE by -0.01 %).  Returns the first such law
     as ``(ext, why)``, else None."""
-    found = _first_within_speed_curve(prep, model, ("energy_dependent_friction", "abrupt_change"), False, alpha,
-                                      min_gain)
-    if found is None:
-        return None
-    e, t, own, back, n_cols = found
-    return e, {
-        "reason": (f"a free friction curve of the speed of joint {e.joint} explains it: given the other findings and "
-                   f"the curve ({n_cols} columns) it lowers the held-out RMSE by {100 * t['rmse_reduction']:.2f} % "
-                   f"(p = {t['p_value']:.2g}), not significantly (alone, given the other findings, by "
-                   f"{100 * own['rmse_reduction']:.1f} %), while the curve given it lowers it by "
-                   f"{100 * back['rmse_reduction']:.1f} %: the misfit of the Stribeck law's shape, which a change over "
-                   "the log in the speeds the joint runs at makes a function of time"),
-        "within_speed_curve": True, "law_in_time_given_speed_curve": comp._brief(t),
-        "speed_curve_given_law_in_time": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"],
-        "speed_curve_columns": n_cols}
+    return _within_speed_curve(prep, model, ("energy_dependent_friction", "abrupt_change"), False, alpha, min_gain,
+                               "law_in_time", "the misfit of the Stribeck law's shape, which a change over the log in "
+                               "the speeds the joint runs at makes a function of time", digits=2)
 
 
 def _later_on_structure(steps, unexplained):
