@@ -1456,21 +1456,23 @@ def _first_gain_in_few_samples(prep, steps, model, fit, sigma):
     return None
 
 
-def gain_within_rounding(prep, model):
-    """A finding on a joint whose torque a coarse ADC rounds (:func:`~drake_est.diagnose.quantization.torque_step`)
-    that makes the quantized readings themselves less likely.  Least squares on the rounded torque treats the
-    rounding error as noise; when the noise before the ADC is small against its step, that error is a staircase of
-    the torque level, and the fit it biases leaves a misfit that a law in time or speed can take (closed-loop spec
-    1627, a null log at 1000 Hz with a 0.23 N m step: the viscous kv comes out 0.38 N m s/rad against the
-    generator's 0.56, and an abrupt change of kv at 95 s is named, its gain in the one fast move after it).  Each
-    finding of the final ``model`` on such a joint is weighed by the likelihood of the readings, each one saying only
-    that the torque lay within half a step of it (:func:`~drake_est.diagnose.quantization.interval_fit`: the model
-    with and without the finding fitted on the training rows, the inertia free on generic axes since its estimate is
-    a least-squares one too).  Both are scored on the held-out readings with one noise level, the larger of their
-    two estimates (a noise level fitted to the training rows alone would reward or punish a model for it: a model
-    that puts every training reading inside its step drives its own estimate towards zero).  A finding whose
-    held-out log-likelihood gain is not positive is set aside; the first such finding of the model is returned as
-    ``(ext, why)``, else None.  Joints of several logs (per-log offsets) are not checked."""
+#: the least held-out log-likelihood gain [nats] of a finding on a joint whose torque a coarse ADC rounds
+#: (:func:`gain_within_rounding`): a likelihood ratio below e (2 ln B < 2) is "not worth more than a bare mention"
+#: (Kass and Raftery 1995).  Loop spec 14517 (backlash at 1000 Hz, a 0.076 N m step) holds a Stribeck hump of
+#: 0.025 N m whose gain is 3.5e-5 nats over 13,968 held-out readings: positive, and nothing.
+MIN_ROUNDING_LOGLIK_GAIN = 1.0
+
+
+def rounding_loglik_gains(prep, model):
+    """The held-out log-likelihood gain of each finding of ``model`` on a joint whose torque a coarse ADC rounds
+    (:func:`~drake_est.diagnose.quantization.torque_step`), weighed by the likelihood of the quantized readings, each
+    one saying only that the torque lay within half a step of it (:func:`~drake_est.diagnose.quantization.interval_fit`:
+    the model with and without the finding fitted on the training rows, the inertia free on generic axes since its
+    estimate is a least-squares one too).  Both are scored on the held-out readings with one noise level, the larger
+    of their two estimates (a noise level fitted to the training rows alone would reward or punish a model for it: a
+    model that puts every training reading inside its step drives its own estimate towards zero).  Yields
+    ``(ext, info)`` lazily, finding by finding, ``info["heldout_loglik_gain"]`` in nats.  Joints of several logs
+    (per-log offsets), joints not on a grid and joints with too few rows are skipped."""
     from drake_est.diagnose.quantization import interval_fit, interval_loglik
     for e in model.exts:
         if e.shared:
@@ -1513,16 +1515,34 @@ def gain_within_rounding(prep, model):
         s = max(s0, s1)
         gain = float(np.sum(interval_loglik(X1[va], c1, s, lo[va], hi[va])
                             - interval_loglik(X0[va], c0, s, lo[va], hi[va])))
-        if gain > 0:
+        yield e, {"adc_step": float(step), "noise_before_adc": float(s), "noise_before_adc_without": float(s0),
+                  "noise_before_adc_with": float(s1), "heldout_loglik_gain": gain, "heldout_samples": int(va.sum())}
+
+
+def gain_within_rounding(prep, model, min_gain: float = MIN_ROUNDING_LOGLIK_GAIN):
+    """A finding on a joint whose torque a coarse ADC rounds that does not make the quantized readings themselves
+    more likely.  Least squares on the rounded torque treats the rounding error as noise; when the noise before the
+    ADC is small against its step, that error is a staircase of the torque level, and the fit it biases leaves a
+    misfit that a law in time or speed can take (closed-loop spec 1627, a null log at 1000 Hz with a 0.23 N m step:
+    the viscous kv comes out 0.38 N m s/rad against the generator's 0.56, and an abrupt change of kv at 95 s is
+    named, its gain in the one fast move after it).  A finding whose held-out log-likelihood gain
+    (:func:`rounding_loglik_gains`) is below ``min_gain`` nats (:data:`MIN_ROUNDING_LOGLIK_GAIN`; not positive until
+    the forty-fifth round) is set aside; the first such finding of the model is returned as ``(ext, why)``, else
+    None."""
+    for e, info in rounding_loglik_gains(prep, model):
+        gain = info["heldout_loglik_gain"]
+        if gain >= min_gain:
             continue
+        how = (f"at least as well (log-likelihood gain {gain:.3g} nats over {info['heldout_samples']} samples)"
+               if gain <= 0 else
+               f"nearly as well (log-likelihood gain {gain:.3g} nats over {info['heldout_samples']} samples, below the "
+               f"{min_gain:g} nat a finding needs: a likelihood ratio under {np.exp(min_gain):.3g})")
         return e, {
-            "reason": (f"the torque ADC's rounding (step {step:.3g} N m) explains it: fitted by the likelihood of the "
-                       f"quantized readings (each within half a step of the torque; noise before the ADC {s:.2g} N m), "
-                       f"the model without it predicts the held-out readings at least as well (log-likelihood gain "
-                       f"{gain:.3g} over {int(va.sum())} samples)"),
-            "within_rounding": True, "adc_step": float(step), "noise_before_adc": float(s),
-            "noise_before_adc_without": float(s0), "noise_before_adc_with": float(s1),
-            "heldout_loglik_gain": gain, "heldout_samples": int(va.sum())}
+            "reason": (f"the torque ADC's rounding (step {info['adc_step']:.3g} N m) explains it: fitted by the "
+                       f"likelihood of the quantized readings (each within half a step of the torque; noise before the "
+                       f"ADC {info['noise_before_adc']:.2g} N m), the model without it predicts the held-out readings "
+                       f"{how}"),
+            "within_rounding": True, **info}
     return None
 
 
