@@ -1322,32 +1322,50 @@ def disturbance_explained_by_state(prep, model, alpha, min_gain):
         if e.effect != "time_periodic_disturbance" or e.shared or "at_motion_line_hz" in e.evidence:
             continue
         m0 = Model(prep, [x for x in model.exts if x is not e])
-        solve = _model_solver(m0, e.joint)
-        N = comp.state_nuisance(prep, m0, e.joint, solve=solve, without=DISTURBANCE_DRIVEN_BLOCKS)
-        C = e.cols[e.joint]
-        t = comp._partial_test(prep, m0, e.joint, N, C, alpha, min_gain, solve)
-        if t["significant"]:
-            continue
-        # the state must also be the better explanation on its own: where the disturbance alone predicts the held-out
-        # residual better than the state's function does, the two are collinear on the training rows (a slow
-        # disturbance under slow moves) and the state's columns took the disturbance's part there, not the reverse
-        # (loop spec 3037: a planted 0.5 Hz disturbance at 10 Hz, 67 % lower held-out RMSE alone, 15 % higher given
-        # the state's 14 columns, which were chosen to predict the residual with the disturbance still in it)
-        zero = np.zeros((C.shape[0], 0))
-        own = comp._partial_test(prep, m0, e.joint, zero, C, alpha, min_gain, solve)["rmse_reduction"]
-        state = comp._partial_test(prep, m0, e.joint, zero, N, alpha, min_gain, solve)["rmse_reduction"]
-        if N.shape[1] and state >= own:
-            return e.effect, e.joint, {
-                "reason": (f"explained by a function of the state of joint {e.joint} (position, speed, direction and "
-                           f"the time since the last reversal; {N.shape[1]} columns): given it and the other findings "
-                           "the disturbance lowers the "
-                           f"held-out RMSE by {100 * t['rmse_reduction']:.1f} % (p = {t['p_value']:.2g}), not "
-                           f"significantly, while the state's function alone lowers it by {100 * state:.1f} % (the "
-                           f"disturbance alone by {100 * own:.1f} %); a disturbance from outside the axis does not "
-                           "follow its state"),
-                "explained_by_state": True, "state_law_test": comp._brief(t), "state_columns": int(N.shape[1]),
-                "heldout_rmse_reduction_alone": float(own), "state_heldout_rmse_reduction": float(state)}
+        got = _state_explains(prep, m0, e.joint, e.cols[e.joint], alpha, min_gain, without=DISTURBANCE_DRIVEN_BLOCKS)
+        if got is not None:
+            return e.effect, e.joint, _state_entry(e.joint, got, "", "the disturbance", "the disturbance alone", "; a "
+                                                   "disturbance from outside the axis does not follow its state")
     return None
+
+
+def _state_explains(prep, m0, j, C, alpha, min_gain, without=()):
+    """Whether a free function of joint ``j``'s state (:func:`~drake_est.diagnose.competition.state_nuisance`, its
+    blocks chosen forward on the model ``m0`` without the finding, ``without``: blocks left out) explains the finding
+    whose columns are ``C``: given the function they do not predict the held-out residual (partial held-out F-test at
+    ``alpha``, gain ``min_gain``), and the function alone predicts it at least as well as they do alone.  The second
+    condition: where the finding alone predicts the held-out residual better than the state's function does, the two
+    are collinear on the training rows (a slow disturbance under slow moves) and the state's columns took the
+    finding's part there, not the reverse (loop spec 3037: a planted 0.5 Hz disturbance at 10 Hz, 67 % lower held-out
+    RMSE alone, 15 % higher given the state's 14 columns, which were chosen to predict the residual with the
+    disturbance still in it).  ``(N, test given the function, own RMSE reduction, the function's)``, else None.  The
+    checks of :func:`disturbance_explained_by_state` and :func:`time_law_beside_stribeck_explained_by_state`."""
+    solve = _model_solver(m0, j)
+    N = comp.state_nuisance(prep, m0, j, solve=solve, without=without)
+    t = comp._partial_test(prep, m0, j, N, C, alpha, min_gain, solve)
+    if t["significant"]:
+        return None
+    zero = np.zeros((C.shape[0], 0))
+    own = comp._partial_test(prep, m0, j, zero, C, alpha, min_gain, solve)["rmse_reduction"]
+    state = comp._partial_test(prep, m0, j, zero, N, alpha, min_gain, solve)["rmse_reduction"]
+    if not N.shape[1] or state < own:
+        return None
+    return N, t, own, state
+
+
+def _state_entry(j, got, beside, what, alone, tail):
+    """The set-aside entry of a finding a free function of joint ``j``'s state explains (``got``: what
+    :func:`_state_explains` returned): the reason (``beside``: after the columns' count, ``what``: the finding,
+    ``alone``: it alone, ``tail``: the cause) and the partial tests."""
+    N, t, own, state = got
+    return {
+        "reason": (f"explained by a function of the state of joint {j} (position, speed, direction and the time since "
+                   f"the last reversal; {N.shape[1]} columns){beside}: given it and the other findings {what} lowers "
+                   f"the held-out RMSE by {100 * t['rmse_reduction']:.1f} % (p = {t['p_value']:.2g}), not "
+                   f"significantly, while the state's function alone lowers it by {100 * state:.1f} % ({alone} by "
+                   f"{100 * own:.1f} %){tail}"),
+        "explained_by_state": True, "state_law_test": comp._brief(t), "state_columns": int(N.shape[1]),
+        "heldout_rmse_reduction_alone": float(own), "state_heldout_rmse_reduction": float(state)}
 
 
 def time_law_beside_stribeck_explained_by_state(prep, model, alpha, min_gain):
@@ -1369,29 +1387,11 @@ def time_law_beside_stribeck_explained_by_state(prep, model, alpha, min_gain):
         j = e.joint
         if not any(x.effect == "stribeck" and not x.shared and x.joint == j for x in model.exts):
             continue
-        m0 = Model(prep, [x for x in model.exts if x is not e])
-        solve = _model_solver(m0, j)
-        N = comp.state_nuisance(prep, m0, j, solve=solve)
-        if not N.shape[1]:
-            continue
-        C = e.cols[j]
-        t = comp._partial_test(prep, m0, j, N, C, alpha, min_gain, solve)
-        if t["significant"]:
-            continue
-        zero = np.zeros((C.shape[0], 0))
-        own = comp._partial_test(prep, m0, j, zero, C, alpha, min_gain, solve)["rmse_reduction"]
-        state = comp._partial_test(prep, m0, j, zero, N, alpha, min_gain, solve)["rmse_reduction"]
-        if state < own:
-            continue
-        return e.effect, j, {
-            "reason": (f"explained by a function of the state of joint {j} (position, speed, direction and the time "
-                       f"since the last reversal; {N.shape[1]} columns) beside its Stribeck law: given it and the other "
-                       f"findings the {e.effect.replace('_', ' ')} lowers the held-out RMSE by "
-                       f"{100 * t['rmse_reduction']:.1f} % (p = {t['p_value']:.2g}), not significantly, while the "
-                       f"state's function alone lowers it by {100 * state:.1f} % (the law alone by {100 * own:.1f} %): "
-                       "the misfit of the Stribeck law's shape, not a change of the friction over the log"),
-            "explained_by_state": True, "state_law_test": comp._brief(t), "state_columns": int(N.shape[1]),
-            "heldout_rmse_reduction_alone": float(own), "state_heldout_rmse_reduction": float(state)}
+        got = _state_explains(prep, Model(prep, [x for x in model.exts if x is not e]), j, e.cols[j], alpha, min_gain)
+        if got is not None:
+            return e.effect, j, _state_entry(j, got, " beside its Stribeck law", f"the {e.effect.replace('_', ' ')}",
+                                             "the law alone", ": the misfit of the Stribeck law's shape, not a change "
+                                             "of the friction over the log")
     return None
 
 
