@@ -1381,12 +1381,8 @@ def time_law_beside_stribeck_explained_by_state(prep, model, alpha, min_gain):
     with Student-t noise; an abrupt change named with the level's part, ambiguous with a load, lowers the held-out RMSE
     by 6.7 % given the curve, by 1.3 % given the state's function, which alone lowers it by 60 %, the change alone by
     43 %).  Returns the first such law as ``(effect, joint, why)``, else None."""
-    for e in model.exts:
-        if e.effect not in ("abrupt_change", "energy_dependent_friction") or e.shared:
-            continue
+    for e in _beside_stribeck(model, ("abrupt_change", "energy_dependent_friction")):
         j = e.joint
-        if not any(x.effect == "stribeck" and not x.shared and x.joint == j for x in model.exts):
-            continue
         got = _state_explains(prep, Model(prep, [x for x in model.exts if x is not e]), j, e.cols[j], alpha, min_gain)
         if got is not None:
             return e.effect, j, _state_entry(j, got, " beside its Stribeck law", f"the {e.effect.replace('_', ' ')}",
@@ -1653,6 +1649,14 @@ def position_friction_within_speed_curve(prep, model, alpha, min_gain):
                                "position", digits=1)
 
 
+def _beside_stribeck(model, effects) -> list:
+    """The single-joint findings of ``model`` with an effect in ``effects`` on a joint whose model also holds a
+    Stribeck finding, in the model's order (the findings :func:`_within_speed_curve` and
+    :func:`time_law_beside_stribeck_explained_by_state` check)."""
+    stribeck = {x.joint for x in model.exts if x.effect == "stribeck" and not x.shared}
+    return [e for e in model.exts if e.effect in effects and not e.shared and e.joint in stribeck]
+
+
 def _within_speed_curve(prep, model, effects, spread, alpha, min_gain, law, cause, digits):
     """The first finding of the final ``model`` with an effect in ``effects`` (single-joint, on a joint whose model
     also holds a Stribeck finding) whose columns do not predict the joint's held-out residual given the other findings
@@ -1661,12 +1665,8 @@ def _within_speed_curve(prep, model, effects, spread, alpha, min_gain, law, caus
     with ``digits`` decimals) and the partial tests, keyed ``{law}_given_speed_curve`` and
     ``speed_curve_given_{law}``; None when there is none (the checks of
     :func:`position_friction_within_speed_curve` and :func:`time_law_within_speed_curve`)."""
-    for e in model.exts:
-        if e.effect not in effects or e.shared:
-            continue
+    for e in _beside_stribeck(model, effects):
         j = e.joint
-        if not any(x.effect == "stribeck" and not x.shared and x.joint == j for x in model.exts):
-            continue
         N = comp.speed_law_nuisance(prep, j, spread=spread)
         if N is None:
             continue
