@@ -1339,7 +1339,7 @@ def _state_explains(prep, m0, j, C, alpha, min_gain, without=()):
     finding's part there, not the reverse (loop spec 3037: a planted 0.5 Hz disturbance at 10 Hz, 67 % lower held-out
     RMSE alone, 15 % higher given the state's 14 columns, which were chosen to predict the residual with the
     disturbance still in it).  ``(N, test given the function, own RMSE reduction, the function's)``, else None.  The
-    checks of :func:`disturbance_explained_by_state` and :func:`time_law_beside_stribeck_explained_by_state`."""
+    checks of :func:`disturbance_explained_by_state` and :func:`time_law_explained_by_state`."""
     solve = _model_solver(m0, j)
     N = comp.state_nuisance(prep, m0, j, solve=solve, without=without)
     t = comp._partial_test(prep, m0, j, N, C, alpha, min_gain, solve)
@@ -1368,27 +1368,60 @@ def _state_entry(j, got, beside, what, alone, tail):
         "heldout_rmse_reduction_alone": float(own), "state_heldout_rmse_reduction": float(state)}
 
 
-def time_law_beside_stribeck_explained_by_state(prep, model, alpha, min_gain):
+def time_law_explained_by_state(prep, model, steps, alpha, min_gain):
     """A friction law in time (an energy drift or an abrupt change) of the final ``model`` on a joint that also holds
-    a Stribeck law, which a free function of the joint's state explains: given the other findings and the function
-    (:func:`~drake_est.diagnose.competition.state_nuisance`: position, speed, direction and the time since the last
-    reversal, blocks chosen forward on the model without the law) its columns do not predict the joint's held-out
-    residual (partial held-out F-test at ``alpha``, gain ``min_gain``), and the function alone predicts that residual
-    at least as well as the law alone.  A drift or a change of the friction over the log is not a function of the
-    state; the misfit of the Stribeck law's one shape is, and where the moves of the log differ between its parts a law
-    in time takes it.  :func:`time_law_within_speed_curve` holds the law against a curve of the speed only, which does
-    not see direction or how long ago the joint reversed (loop spec 13761: an asymmetric level beside Stribeck at 10 Hz
-    with Student-t noise; an abrupt change named with the level's part, ambiguous with a load, lowers the held-out RMSE
-    by 6.7 % given the curve, by 1.3 % given the state's function, which alone lowers it by 60 %, the change alone by
-    43 %).  Returns the first such law as ``(effect, joint, why)``, else None."""
-    for e in _beside_stribeck(model, ("abrupt_change", "energy_dependent_friction")):
+    a law of the state, which a free function of the joint's state explains (:func:`_state_explains`: given the other
+    findings and the function, :func:`~drake_est.diagnose.competition.state_nuisance` -- position, speed, direction
+    and the time since the last reversal, blocks chosen forward on the model without the law -- its columns do not
+    predict the joint's held-out residual, partial held-out F-test at ``alpha``, gain ``min_gain``, and the function
+    alone predicts that residual at least as well as the law alone).  A drift or a change of the friction over the log
+    is not a function of the state; the misfit of a law of the state's fixed shape is, and where the moves of the log
+    differ between its parts a law in time takes it.  The laws checked (:func:`_time_laws_beside_state`): beside a
+    Stribeck law, every one (forty-sixth round); beside another law of the state (a load, a position friction, an
+    asymmetric level, a ripple), only one whose ``steps`` do not report it ambiguous with a law of the state
+    (forty-eighth round): there the law in time stands for that law, and setting it aside loses the law (loop specs
+    4320 and 1152 in the forty-seventh round: an energy drift ambiguous with Stribeck beside a load).
+    :func:`time_law_within_speed_curve` holds the law against a curve of the speed only, which does not see direction
+    or how long ago the joint reversed.  Loop spec 13761 (beside Stribeck): an asymmetric level beside Stribeck at 10
+    Hz with Student-t noise; an abrupt change named with the level's part, ambiguous with a load, lowers the held-out
+    RMSE by 6.7 % given the curve, by 1.3 % given the state's function, which alone lowers it by 60 %, the change alone
+    by 43 %.  Loop spec 4345 (beside a position friction): an asymmetric level beside Stribeck at 100 Hz, reported as a
+    position friction ambiguous with Stribeck and a load, and an energy drift named outright; given the state the
+    drift lowers the held-out RMSE by -0.6 %, the state alone by 23 %, the drift alone by 20 %.  Returns the first such
+    law as ``(effect, joint, why)``, else None."""
+    for e, beside in _time_laws_beside_state(model, steps):
         j = e.joint
         got = _state_explains(prep, Model(prep, [x for x in model.exts if x is not e]), j, e.cols[j], alpha, min_gain)
         if got is not None:
-            return e.effect, j, _state_entry(j, got, " beside its Stribeck law", f"the {e.effect.replace('_', ' ')}",
-                                             "the law alone", ": the misfit of the Stribeck law's shape, not a change "
-                                             "of the friction over the log")
+            if beside == ["stribeck"]:
+                where, cause = " beside its Stribeck law", "the Stribeck law's shape"
+            else:
+                laws = " and ".join(x.replace("_", " ") for x in beside)
+                where, cause = f" beside its {laws}", f"the fixed shape of its {laws}"
+            return e.effect, j, _state_entry(j, got, where, f"the {e.effect.replace('_', ' ')}", "the law alone",
+                                             f": the misfit of {cause}, not a change of the friction over the log")
     return None
+
+
+def _time_laws_beside_state(model, steps) -> list:
+    """The single-joint energy drifts and abrupt changes of ``model`` that :func:`time_law_explained_by_state`
+    checks, each with the laws of the state beside it on its joint (single-joint findings outside
+    :data:`~drake_est.diagnose.competition.TIME_LAWS`, sorted): every one beside a Stribeck law (then only
+    ``["stribeck"]``, the forty-sixth round's check), and one beside other laws of the state that its step
+    (``steps``) does not report ambiguous with a law of the state."""
+    rivals = {(st.ext.effect, st.ext.joint): comp.ambiguous_rivals(st.competition)
+              for st in steps if not st.ext.shared and st.competition.get("ambiguous")}
+    out = []
+    for e in model.exts:
+        if e.effect not in ("abrupt_change", "energy_dependent_friction") or e.shared:
+            continue
+        beside = sorted({x.effect for x in model.exts
+                         if x.effect not in comp.TIME_LAWS and not x.shared and x.joint == e.joint})
+        if "stribeck" in beside:
+            out.append((e, ["stribeck"]))
+        elif beside and not [r for r in rivals.get((e.effect, e.joint), []) if r and r not in comp.TIME_LAWS]:
+            out.append((e, beside))
+    return out
 
 
 def finding_not_confirmed(steps, unexplained, min_gain_not_white=MIN_GAIN_NOT_WHITE):
@@ -1651,8 +1684,7 @@ def position_friction_within_speed_curve(prep, model, alpha, min_gain):
 
 def _beside_stribeck(model, effects) -> list:
     """The single-joint findings of ``model`` with an effect in ``effects`` on a joint whose model also holds a
-    Stribeck finding, in the model's order (the findings :func:`_within_speed_curve` and
-    :func:`time_law_beside_stribeck_explained_by_state` check)."""
+    Stribeck finding, in the model's order (the findings :func:`_within_speed_curve` checks)."""
     stribeck = {x.joint for x in model.exts if x.effect == "stribeck" and not x.shared}
     return [e for e in model.exts if e.effect in effects and not e.shared and e.joint in stribeck]
 
@@ -2031,7 +2063,7 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
                     continue
             if state is None and n_time_state < MAX_NOT_CONFIRMED:
                 # ... and against a free function of the state
-                tstate = time_law_beside_stribeck_explained_by_state(prep, model, alpha, min_gain)
+                tstate = time_law_explained_by_state(prep, model, out[3], alpha, min_gain)
                 if tstate is not None:
                     n_time_state += 1
                     effect, joint, why = tstate

@@ -463,9 +463,9 @@ def markdown(d: dict) -> str:
     if d.get("set_aside"):
         L += ["", "## Findings set aside"]
         groups = (("Each finding is checked against the others (and a disturbance in time, or a friction law in time "
-                   "beside Stribeck, against a function of its joint's state; a position friction or a friction law "
-                   "in time beside Stribeck against a free friction curve of the speed): these were explained by them "
-                   "or not separated from a simpler rival.",
+                   "beside a law of the state, against a function of its joint's state; a position friction or a "
+                   "friction law in time beside Stribeck against a free friction curve of the speed): these were "
+                   "explained by them or not separated from a simpler rival.",
                    [r for r in d["set_aside"] if not r.get("not_confirmed") and not r.get("gain_in_few_samples")
                     and not r.get("within_rounding")]),
                   ("Small findings are not confirmed while the final residual still holds structure:",
