@@ -22,6 +22,11 @@ def test_loop_case_5775_load_is_ambiguous_with_the_level_it_holds(ulps):
     assert [f["effect"] for f in d["findings"]] == ["position_dependent_load", "stribeck"]
     load = d["findings"][0]
     assert load["ambiguous_between"] == ["position_dependent_load", "asymmetric_coulomb"]
+    if "alternative_model" not in load["competition"]:
+        # on an AVX2 CPU at 3 ulps the load's own round already leaves it ambiguous with the level (paired p = 0.053,
+        # the blocks do not separate the two), and no alternative is needed
+        assert load["competition"]["paired_p_value"] >= core.PAIRED_ALPHA
+        return
     alt = load["competition"]["alternative_model"]
     assert alt["findings"] == ["asymmetric_coulomb", "stribeck"]
     assert load["competition"]["paired_p_value"] >= core.PAIRED_ALPHA

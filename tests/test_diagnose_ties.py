@@ -43,6 +43,9 @@ def test_loop_case_4851_level_is_not_left_out_of_the_loads_ambiguity(ulps):
     log, truth = bench_module("bench_diagnose_testbench").loop_log(4851, reference_ulps=ulps)
     assert sorted(truth["effects"]) == ["asymmetric_coulomb", "stribeck"]
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    if [f["effect"] for f in d["findings"]] == ["asymmetric_coulomb", "stribeck"]:
+        # on an AVX2 CPU at 5 ulps the level itself is named (the load never accepted first): nothing left out
+        return
     assert [f["effect"] for f in d["findings"]] == ["position_dependent_load", "stribeck"]
     load = d["findings"][0]
     assert "asymmetric_coulomb" in load["ambiguous_between"]
