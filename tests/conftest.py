@@ -56,11 +56,14 @@ def bench_module(name: str):
     return mod
 
 
-def closed_loop_case(k: int):
-    """(benchmark module, spec, log, truth) of the closed-loop benchmark's spec ``k``."""
+def closed_loop_case(k: int, reference_ulps: int = 0):
+    """(benchmark module, spec, log, truth) of the closed-loop benchmark's spec ``k``; ``reference_ulps``: its position
+    reference moved by that many ulps (another CPU's last digits; 0: as generated, and left to the last-digits
+    plugin)."""
     mod = bench_module("bench_diagnose_testbench")
     spec = mod.loop_cases(k + 1)[k]
-    return (mod, spec) + tuple(mod.loop_log(spec))
+    kw = {"reference_ulps": reference_ulps} if reference_ulps else {}
+    return (mod, spec) + tuple(mod.loop_log(spec, **kw))
 
 
 def nominal_candidates(effects: dict, seed: int):

@@ -6,7 +6,7 @@ import pytest
 from drake_est.diagnose import core, diagnose
 from drake_est.diagnose.report import markdown
 
-from conftest import bench_module, closed_loop_case
+from conftest import closed_loop_case
 
 
 def test_a_misfit_of_the_rounding_is_not_named():
@@ -38,9 +38,7 @@ def test_a_planted_effect_under_a_coarse_adc_is_still_named(k, ulps):
     # 11228 is followed 1 ulp away from its reference: on an AVX2 CPU the log as generated names the load only (an
     # energy drift set aside by the state check beside the load, Stribeck never a candidate), a miss that is not the
     # ADC check's
-    mod = bench_module("bench_diagnose_testbench")
-    spec = mod.loop_cases(k + 1)[k]
-    log, truth = mod.loop_log(k, reference_ulps=ulps)
+    mod, spec, log, truth = closed_loop_case(k, reference_ulps=ulps)
     rep = diagnose(log, robot="generic", seed=0, simulate=False)
     dd = rep.to_dict()
     j = mod.judge(spec, dd)

@@ -11,7 +11,7 @@ from drake_est.diagnose import core, diagnose
 from drake_est.diagnose.report import markdown
 from drake_est.diagnose.testbench import generate
 
-from conftest import bench_module, closed_loop_case, nominal_candidates
+from conftest import closed_loop_case, nominal_candidates
 
 
 @pytest.mark.parametrize("ulps", [1, 2, 5])
@@ -23,9 +23,7 @@ def test_the_misfit_of_a_stribeck_shape_is_not_named_as_a_change(ulps):
     # alone (a wrong name there), while the CPU that ran the round named the level and Stribeck; with the reference
     # moved by 1, 2 and 5 ulps (other last digits) the change is set aside on the AVX2 CPU too, by this check or by an
     # earlier one of the confirmation loop
-    mod = bench_module("bench_diagnose_testbench")
-    spec = mod.loop_cases(13762)[13761]
-    log, truth = mod.loop_log(13761, reference_ulps=ulps)
+    mod, spec, log, truth = closed_loop_case(13761, reference_ulps=ulps)
     rep = diagnose(log, robot="generic", seed=0, simulate=False)
     d = rep.to_dict()
     assert sorted(f["effect"] for f in d["findings"]) == ["asymmetric_coulomb", "stribeck"]
@@ -63,9 +61,7 @@ def test_no_drift_is_named_beside_a_position_friction_for_an_asymmetric_level(ul
     # friction took the level's and Stribeck's part and an energy drift, named outright, the misfit of its shape.  With
     # the round the drift is set aside by this check (-0.6 % given the state, the state alone 23 %); at other last
     # digits of the reference the search may not name a drift at all.  Either way: no wrong name, no drift
-    mod = bench_module("bench_diagnose_testbench")
-    spec = mod.loop_cases(4346)[4345]
-    log, truth = mod.loop_log(4345, reference_ulps=ulps)
+    mod, spec, log, truth = closed_loop_case(4345, reference_ulps=ulps)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert not mod.judge(spec, d)["wrong"]
     assert "energy_dependent_friction" not in [f["effect"] for f in d["findings"]]

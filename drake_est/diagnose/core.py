@@ -1413,7 +1413,7 @@ def _time_laws_beside_state(model, steps) -> list:
               for st in steps if not st.ext.shared and st.competition.get("ambiguous")}
     out = []
     for e in model.exts:
-        if e.effect not in ("abrupt_change", "energy_dependent_friction") or e.shared:
+        if e.effect not in TIME_LAW_PAIR or e.shared:
             continue
         beside = sorted({x.effect for x in model.exts
                          if x.effect not in comp.TIME_LAWS and not x.shared and x.joint == e.joint})
