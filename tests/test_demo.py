@@ -1,8 +1,11 @@
 import json
 
+import pytest
+
 from drake_est.cli import main
 
 
+@pytest.mark.long
 def test_demo_default_out_dir(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert main(["demo"]) == 0

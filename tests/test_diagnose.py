@@ -103,6 +103,7 @@ def test_abrupt_change_time_and_levels():
     assert p["kc_after"] == pytest.approx(tp["kc_after"], rel=0.15)
 
 
+@pytest.mark.long
 def test_energy_time_constant():
     rep, truth = report("energy_dependent_friction")
     p = rep.findings[0]["parameters"]
@@ -111,6 +112,7 @@ def test_energy_time_constant():
     assert p["gain_k_e"] < 0   # friction falls as the joint warms up, as injected
 
 
+@pytest.mark.long
 def test_gear_coupling_found_on_wrist():
     rep, truth = report("gear_coupling")
     f = rep.findings
@@ -223,8 +225,10 @@ def test_logs_from_an_independent_generator(effect, duration, rate):
     assert rep.to_dict()["final"]["per_joint"]["1"]["rmse"] <= 1.2 * 0.4
 
 
-@pytest.mark.parametrize("name", ["motor_position_ripple", "gear_coupling", "abrupt_change",
-                                  "energy_dependent_friction"])
+@pytest.mark.parametrize("name", ["motor_position_ripple", pytest.param("gear_coupling", marks=pytest.mark.long),
+                                  "abrupt_change",
+                                  # the long logs of test_energy_time_constant and test_gear_coupling_found_on_wrist
+                                  pytest.param("energy_dependent_friction", marks=pytest.mark.long)])
 def test_diagnosed_model_is_the_friction_model_and_round_trips_json(name, tmp_path):
     """issue #18: friction_system(report) is the same FrictionModel class as fit-friction's; it saves
     to params.json and loads back with identical torques; it equals the simulation's FrictionLaw

@@ -17,7 +17,7 @@ def _names(d):
                                                 for x in comp.ambiguous_rivals(st.competition)]
 
 
-@pytest.mark.parametrize("ulps", [0, 3])
+@pytest.mark.parametrize("ulps", [0, pytest.param(3, marks=pytest.mark.long)])
 def test_a_slow_misfit_of_the_state_is_not_named_a_disturbance(ulps):
     # loop spec 10942: a position load beside a Lorentzian Stribeck law at 250 Hz, nearly every moving sample below
     # twice the Stribeck speed; before the thirty-sixth round a disturbance at 0.087 Hz (17 % lower held-out RMSE, not
@@ -83,6 +83,7 @@ def test_the_blocks_a_disturbance_drives_are_left_out():
     assert core.disturbance_explained_by_state(d.prep, d.final_model, core.ALPHA, core.MIN_GAIN) is None
 
 
+@pytest.mark.long
 def test_the_report_says_why_the_disturbance_was_set_aside(tmp_path):
     from drake_est.diagnose import diagnose
     mod, spec, log, truth = closed_loop_case(10942)

@@ -36,7 +36,7 @@ def _findings(effect, joint):
     return [(f["effect"], f["joint"]) for f in d["findings"]]
 
 
-@pytest.mark.parametrize("joint", [2, 3])
+@pytest.mark.parametrize("joint", [2, pytest.param(3, marks=pytest.mark.long)])
 def test_gravity_joint_without_effect_names_only_the_load(joint):
     f = _findings("none", joint)
     # the gravity load is there and is named; nothing else is
@@ -44,7 +44,7 @@ def test_gravity_joint_without_effect_names_only_the_load(joint):
     assert [x for x in f if x[0] != "position_dependent_load"] == [], f
 
 
-@pytest.mark.parametrize("joint", [2, 3])
+@pytest.mark.parametrize("joint", [2, pytest.param(3, marks=pytest.mark.long)])
 def test_gravity_joint_with_ripple_names_the_ripple(joint):
     f = _findings("motor_position_ripple", joint)
     assert ("motor_position_ripple", joint) in f, f

@@ -10,6 +10,7 @@ from drake_est.diagnose.testbench import generate
 from conftest import closed_loop_case
 
 
+@pytest.mark.long
 def test_the_misfit_of_a_stribeck_shape_is_not_named_as_a_position_friction():
     # fresh spec 14286: a load beside a Gaussian Stribeck law at 100 Hz with Student-t noise, point-to-point moves;
     # before the round a position friction was named first, beside the load and Stribeck (16 % lower held-out RMSE

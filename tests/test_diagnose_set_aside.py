@@ -153,6 +153,7 @@ def test_paired_block_test_separates_a_real_gain_from_chance():
     assert warm["p_value"] < 1e-4 and warm["groups_better"] >= 18
 
 
+@pytest.mark.long
 def test_rival_that_does_not_separate_on_held_out_blocks_makes_the_finding_ambiguous():
     """Closed-loop out-of-sample spec 143 (asymmetric Coulomb + a Gaussian-shaped Stribeck law under
     point-to-point moves).  With the fourth round's Stribeck fit a position load scored 135 above the asymmetric

@@ -296,6 +296,7 @@ def test_position_load_confounded_with_a_speed_law_when_each_position_has_one_sp
     assert comp.position_law_confounded(prep, model, fit, ext, core.ALPHA, core.MIN_GAIN) is None
 
 
+@pytest.mark.long
 def test_position_friction_that_a_speed_curve_explains_is_not_named_in_spec_165():
     """Loop spec 165 (250 Hz, point-to-point moves, Student-t noise, asymmetric Coulomb + a Lorentzian Stribeck law):
     the Gaussian basis leaves a speed-shaped misfit that 16 position kernels take (2.5 % of the RMSE), once named

@@ -4,6 +4,8 @@ rival needs only some of those findings and the held-out blocks do not show the 
 further findings only absorbed the misfit of the law the greedy order happened to choose, and the rival is kept."""
 from __future__ import annotations
 
+import pytest
+
 from drake_est.diagnose import core, diagnose
 
 from conftest import bench_module
@@ -16,6 +18,7 @@ def _named(d) -> set:
     return out
 
 
+@pytest.mark.long
 def test_loop_case_10526_change_with_its_ripple_not_a_drift_with_a_position_friction():
     """Fresh loop spec 10526 (an abrupt change beside a motor ripple of one period per motor revolution, 1000 Hz):
     the energy drift, ambiguous with the change, won its round, and a position friction (not planted) fitted the

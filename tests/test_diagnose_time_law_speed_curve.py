@@ -10,6 +10,7 @@ from drake_est.diagnose.testbench import generate
 from conftest import closed_loop_case
 
 
+@pytest.mark.long
 def test_the_misfit_of_a_stribeck_shape_is_not_named_as_a_drift():
     # fresh spec 14572: a load beside a Gaussian Stribeck law at 100 Hz; before the round an energy drift with the
     # scan's longest time constant was named first, beside the load and Stribeck (4.8 % lower held-out RMSE given

@@ -138,6 +138,7 @@ def test_false_alarm_rate_on_many_null_logs():
     assert len(ps) >= 70 and sum(p < 0.01 for p in ps) <= 3
 
 
+@pytest.mark.long
 def test_stribeck_entry_says_the_selection_left_the_slow_samples_out():
     """Closed-loop spec 4980 (10 Hz: a position load and a Lorentzian Stribeck law, every moving sample below 2 vs).
     The selection's speed bound is ten times the velocity's sample-to-sample change (46 % of the top speed), so the

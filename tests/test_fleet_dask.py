@@ -67,6 +67,7 @@ def _n_rows(db):
         return 0
 
 
+@pytest.mark.long
 def test_end_to_end_warnings_match_truth_and_rerun_skips(fleet, client, tmp_path):
     out, s = fleet
     db = tmp_path / "f.db"

@@ -20,6 +20,7 @@ def _rel(a, b):
     return abs(a - b) / abs(b)
 
 
+@pytest.mark.long
 def test_position_dependent_friction_joint1():
     log, truth, j, nom, ext, info = _fit_pair("position_dependent_friction", "position", "viscous", 150.0)
     sigma = truth["noise_std"]
@@ -40,6 +41,7 @@ def test_position_dependent_friction_joint1():
     assert np.max(np.abs(level_est - level_true) / np.abs(level_true)) < 0.10
 
 
+@pytest.mark.long
 def test_asymmetric_coulomb_joint1():
     log, truth, j, nom, ext, info = _fit_pair("asymmetric_coulomb", "nominal", "asymmetric", 100.0)
     _, _, _, sym, _, _ = _fit_pair("asymmetric_coulomb", "nominal", "viscous", 100.0)

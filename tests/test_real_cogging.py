@@ -18,6 +18,7 @@ def cogging_quick():
 
 
 @needs_data
+@pytest.mark.long
 def test_crosslog_gain_and_diagnosis(cogging_quick):
     res = cogging_quick
     held = res["held_out"]

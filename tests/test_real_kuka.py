@@ -69,6 +69,7 @@ def test_case_study_numbers():
 
 
 @needs_data
+@pytest.mark.long
 def test_diagnose_per_axis_runs():
     from drake_est.cases.kuka import diagnose_axes
     from drake_est.datasets.kuka import load_kuka
