@@ -66,8 +66,8 @@ def test_none_log_gives_no_finding():
     assert set(d["data"]["skipped_joints"]) == {"2", "3", "4", "5", "6"}
 
 
-@pytest.mark.parametrize("name", ["position_dependent_friction", "motor_position_ripple", "asymmetric_coulomb",
-                                  "abrupt_change",
+@pytest.mark.parametrize("name", ["position_dependent_friction", "motor_position_ripple",
+                                  pytest.param("asymmetric_coulomb", marks=pytest.mark.long), "abrupt_change",
                                   # ~30 s (a long log); an energy effect alone is named in the default
                                   # multi-log test (test_energy_state_restarts_per_log_in_the_diagnosis)
                                   pytest.param("energy_dependent_friction", marks=pytest.mark.slow)])

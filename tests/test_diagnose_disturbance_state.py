@@ -61,6 +61,7 @@ def test_a_disturbance_at_a_line_of_the_motion_is_left_to_its_round():
     assert core.disturbance_explained_by_state(prep, Model(prep, exts), core.ALPHA, core.MIN_GAIN) is None
 
 
+@pytest.mark.long
 def test_the_blocks_a_disturbance_drives_are_left_out():
     # loop spec 5597: a position friction beside a planted 15 Hz disturbance (1000 Hz, Student-t noise).  In closed
     # loop the disturbance moves the axis, and the acceleration carries its frequency: given the state's blocks with

@@ -3,6 +3,7 @@ experiment that would confirm or refute it (unexplained.next_experiments)."""
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 import scipy.stats
 
 from drake_est.diagnose import competition as comp
@@ -97,6 +98,7 @@ def test_the_next_experiment_repeats_what_the_log_does_there():
     assert "30 %" in e["reason"] and "position_dependent_load (20 %)" in e["reason"]
 
 
+@pytest.mark.long
 def test_a_closed_loop_level_seen_in_one_excursion_gets_the_experiment(tmp_path):
     """Closed-loop spec 4411 (an asymmetric Coulomb level beside Stribeck, 250 Hz): once Stribeck is named, the level
     lowers the held-out RMSE by about 30 %, but the joint moves in the positive direction only between 17 and 44 s,

@@ -176,6 +176,7 @@ def test_irb140_joints_2_3_without_effect_name_nothing_but_the_load():
         assert d["final"]["per_joint"][j]["rmse"] < 1.15 * truth["noise_std"]
 
 
+@pytest.mark.long
 def test_irb140_joints_2_3_ripple_is_named():
     log, truth = _synth("motor_position_ripple", (2, 3), 12)
     f, _ = _findings(log)

@@ -8,7 +8,8 @@ from drake_est.diagnose import core
 from drake_est.diagnose import detectors as det
 
 
-@pytest.mark.parametrize("ulps", [0, pytest.param(3, marks=pytest.mark.long)])
+@pytest.mark.long
+@pytest.mark.parametrize("ulps", [0, 3])
 def test_loop_case_5775_load_is_ambiguous_with_the_level_it_holds(ulps):
     """Closed-loop spec 5775 (250 Hz: an asymmetric Coulomb level beside a Lorentzian Stribeck law).  The load won
     the first round and Stribeck was fitted beside it; given that Stribeck law the load beats the level by 6.7 % of

@@ -72,6 +72,7 @@ def test_a_small_time_periodic_candidate_beside_a_ripple_is_never_named(ulps):
         assert r["effect"] == "time_periodic_disturbance" and r.get("not_confirmed"), r
 
 
+@pytest.mark.long
 def test_a_small_time_periodic_finding_beside_a_ripple_is_set_aside(monkeypatch):
     """Spec 948 with the paired block test's level at 0.10 instead of core.PAIRED_ALPHA (0.05), so that the 0.47 Hz
     candidate passes it on any machine (see above): accepted after the ripple with a 2.6 % gain while the residual
@@ -136,6 +137,7 @@ def test_spec_1287_names_the_load_only_as_ambiguous_with_the_asymmetry():
             assert sep < core.MIN_GAIN_NOT_WHITE
 
 
+@pytest.mark.long
 def test_a_fourth_weak_finding_is_not_named_either():
     # a Stribeck law twice the generator's size (loop seed 3, 100 Hz): on the CPU that ran the thirty-fifth round its
     # shape misfit was about five times the noise, and weak candidates soaked it up in turn; with MAX_NOT_CONFIRMED = 3
@@ -208,6 +210,7 @@ def _drift_search(seed, n_iter, monkeypatch):
     return prep, out, th, float(np.corrcoef(E, th)[0, 1])
 
 
+@pytest.mark.long
 def test_a_warm_up_three_times_the_size_leaves_its_misfit_in_the_estimated_state(monkeypatch):
     # bench_large_effects' energy drifts at 3x (seed 2): the later position friction adds 25 % given the drift fitted
     # on the detector's state E, nothing given a law linear in the generator's own thermal state; E is Algorithm 6's

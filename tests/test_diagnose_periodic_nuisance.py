@@ -10,6 +10,7 @@ disturbance)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from drake_est.diagnose import competition as comp
 from drake_est.diagnose import detectors as det
@@ -29,6 +30,7 @@ def _val_rss(jd, A):
     return float(e @ e)
 
 
+@pytest.mark.long
 def test_periodic_nuisance_lowers_the_held_out_error_and_stribeck_is_named():
     import drake_est.diagnose.detectors as det
     from drake_est.diagnose.competition import periodic_nuisance
@@ -67,6 +69,7 @@ def test_periodic_nuisance_lowers_the_held_out_error_and_stribeck_is_named():
     assert named <= {"stribeck", "asymmetric_coulomb", "position_dependent_load"}, named
 
 
+@pytest.mark.long
 def test_a_candidate_ranked_below_one_the_periodic_residual_explains_must_beat_it_too(monkeypatch):
     """Loop spec 2940 (an abrupt change of friction, 250 Hz, Student-t noise), with the nuisance's sinusoids scanned
     from 4 periods up for every law, as before the thirty-first round: the abrupt change scores best but is explained

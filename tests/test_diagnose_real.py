@@ -35,6 +35,7 @@ def test_odrive_cogging_is_found_as_motor_position_ripple():
 
 
 @pytest.mark.requires_data("emps/DATA_EMPS.mat")  # skip locally, fail under CI=true
+@pytest.mark.long
 def test_emps_position_dependent_friction():
     import scipy.io
     m = scipy.io.loadmat(DATA / "emps" / "DATA_EMPS.mat", squeeze_me=True)

@@ -101,6 +101,7 @@ def test_stribeck_of_the_exponential_shape_keeps_the_parametric_law():
     assert e.spec["vs"] == pytest.approx(0.08, rel=0.1) and e.spec["delta"] == pytest.approx(2.0, abs=0.3)
 
 
+@pytest.mark.long
 def test_closed_loop_load_standing_in_for_asymmetry_and_stribeck_is_set_aside():
     """Closed-loop generator, spec 121 of the benchmark (asymmetric Coulomb + Stribeck under point-to-point
     moves, never used while the rule was written): the greedy search named a position load first; the report

@@ -365,6 +365,7 @@ def test_a_time_periodic_disturbance_that_follows_a_speed_law_misfit_is_not_name
     assert any(u["variable"] == "velocity" for u in d["unexplained"])
 
 
+@pytest.mark.long
 def test_a_load_that_direction_levels_or_a_speed_curve_explain_is_not_named_alone():
     """Loop specs 2453 (asymmetric Coulomb + Stribeck, 10 Hz, quantized torque) and 2662 (a Lorentzian Stribeck
     law, 10 Hz, quantized): under point-to-point moves each position is passed at one speed and in one direction,

@@ -39,7 +39,8 @@ def test_the_quantile_curve_is_unchanged_and_the_spread_one_a_partition_of_unity
     np.testing.assert_allclose(N1[:, half:].sum(axis=1), (v < 0).astype(float), atol=1e-12)
 
 
-@pytest.mark.parametrize("ulps", [0, pytest.param(3, marks=pytest.mark.long)])
+@pytest.mark.long
+@pytest.mark.parametrize("ulps", [0, 3])
 def test_loop_case_7975_load_is_not_named_for_the_sparse_speeds(ulps):
     """Closed-loop spec 7975 (100 Hz, an asymmetric Coulomb level beside a Gaussian Stribeck law): 86 % of the
     selected samples of the main direction move below 0.045 rad/s, and the last quantile knots of the free curve lie at
@@ -73,6 +74,7 @@ def test_a_gap_in_the_speeds_gets_a_knot_at_each_edge():
     np.testing.assert_array_equal(comp._gap_knots(b, x), x)
 
 
+@pytest.mark.long
 def test_loop_case_8522_position_friction_is_ambiguous_with_stribeck():
     """Closed-loop spec 8522 (100 Hz, quantized torque, a load beside a Gaussian Stribeck law): one direction's fast
     samples all move at 0.347 rad/s, none between 0.029 rad/s and that; a position friction beside the load fitted

@@ -13,7 +13,8 @@ def _named(d):
     return out
 
 
-@pytest.mark.parametrize("ulps", [0, pytest.param(1, marks=pytest.mark.long), pytest.param(5, marks=pytest.mark.long)])
+@pytest.mark.long
+@pytest.mark.parametrize("ulps", [0, 1, 5])
 def test_loop_case_4543_level_beside_stribeck_names_no_change(ulps):
     """Closed-loop spec 4543 (250 Hz: an asymmetric Coulomb level beside a Gaussian Stribeck law, vs = 0.043 rad/s,
     most moving samples below 2 vs).  Stribeck was accepted first with vs = 0.031, delta = 3 (bent by the level that

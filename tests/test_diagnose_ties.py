@@ -33,7 +33,8 @@ def test_tied_rivals_are_the_close_significant_ones_best_first():
     assert amb == {}
 
 
-@pytest.mark.parametrize("ulps", [pytest.param(0, marks=pytest.mark.long), pytest.param(1, marks=pytest.mark.long), 5])
+@pytest.mark.long
+@pytest.mark.parametrize("ulps", [0, 1, 5])
 def test_loop_case_4851_level_is_not_left_out_of_the_loads_ambiguity(ulps):
     """Closed-loop spec 4851 (1000 Hz: an asymmetric level beside Stribeck).  The load was accepted first, before
     Stribeck; given Stribeck, the asymmetric level predicts the held-out data within 0.2 % of the load's RMSE, so the

@@ -55,7 +55,8 @@ def test_a_planted_law_in_time_beside_stribeck_survives_the_state(effect, seed, 
                                             s["min_rmse_reduction"]) is None
 
 
-@pytest.mark.parametrize("ulps", [0, pytest.param(1, marks=pytest.mark.long), pytest.param(2, marks=pytest.mark.long)])
+@pytest.mark.long
+@pytest.mark.parametrize("ulps", [0, 1, 2])
 def test_no_drift_is_named_beside_a_position_friction_for_an_asymmetric_level(ulps):
     # loop spec 4345 (forty-eighth round): an asymmetric level beside Stribeck at 100 Hz; before the round a position
     # friction took the level's and Stribeck's part and an energy drift, named outright, the misfit of its shape.  With

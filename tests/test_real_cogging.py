@@ -37,6 +37,7 @@ def test_crosslog_gain_and_diagnosis(cogging_quick):
 
 
 @needs_data
+@pytest.mark.long
 def test_crosslog_diagnosed_gain(cogging_quick):
     res = cogging_quick
     assert res["held_out"]["slow_goodgains_2/nocomp_0.npy"]["reduction_diagnosed"] > 0.3
