@@ -9,12 +9,7 @@ from drake_est.diagnose import core
 from drake_est.diagnose.core import Model, run_diagnosis
 from drake_est.diagnose.nominal import prepare
 
-from conftest import closed_loop_case
-
-
-def _names(d):
-    return [st.ext.effect for st in d.steps] + [x for st in d.steps if st.competition.get("ambiguous")
-                                                for x in comp.ambiguous_rivals(st.competition)]
+from conftest import closed_loop_case, search_names
 
 
 @pytest.mark.parametrize("ulps", [0, pytest.param(3, marks=pytest.mark.long)])
@@ -26,14 +21,14 @@ def test_a_slow_misfit_of_the_state_is_not_named_a_disturbance(ulps):
     planted = {e for e in spec["effects"] if not e.startswith("_")}
     log, _ = mod.loop_log(spec, reference_ulps=ulps)
     d = run_diagnosis(log, robot="generic")
-    assert "time_periodic_disturbance" not in _names(d)
+    assert "time_periodic_disturbance" not in search_names(d)
     away = [x for x in d.prep.meta["set_aside"] if x.get("explained_by_state")]
     assert [(x["effect"], x["joint"]) for x in away] == [("time_periodic_disturbance", 1)]
     t = away[0]["state_law_test"]
     assert not (t["p_value"] < core.ALPHA and t["rmse_reduction"] >= core.MIN_GAIN)
     assert "function of the state of joint 1" in away[0]["reason"]
     # what is named is planted (the level is ambiguous with the planted load)
-    named = set(_names(d))
+    named = set(search_names(d))
     assert named & planted and named <= planted | {"asymmetric_coulomb"}
 
 

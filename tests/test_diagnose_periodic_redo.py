@@ -6,12 +6,7 @@ from drake_est.diagnose import competition as comp
 from drake_est.diagnose import core
 from drake_est.diagnose.core import run_diagnosis
 
-from conftest import closed_loop_case
-
-
-def _names(d):
-    return [st.ext.effect for st in d.steps] + [x for st in d.steps if st.competition.get("ambiguous")
-                                                for x in comp.ambiguous_rivals(st.competition)]
+from conftest import closed_loop_case, search_names
 
 
 def test_redo_laws_are_the_laws_of_position_only():
@@ -28,8 +23,8 @@ def test_loop_case_9505_ripple_after_a_moved_disturbance_is_not_named(monkeypatc
     planted = {e for e in spec["effects"] if not e.startswith("_")}
     assert planted == {"time_periodic_disturbance"}
     d = run_diagnosis(log, robot="generic")
-    assert set(_names(d)) == {"time_periodic_disturbance"}
+    assert set(search_names(d)) == {"time_periodic_disturbance"}
     # without the round run again the ripple stays: the redo is what removes it
     monkeypatch.setattr(core, "PERIODIC_REDO_LAWS", ())
     d0 = run_diagnosis(log, robot="generic")
-    assert "motor_position_ripple" in _names(d0)
+    assert "motor_position_ripple" in search_names(d0)
