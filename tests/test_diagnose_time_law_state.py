@@ -14,7 +14,7 @@ from drake_est.diagnose.testbench import generate
 from conftest import closed_loop_case, nominal_candidates
 
 
-@pytest.mark.parametrize("ulps", [1, 2, 5])
+@pytest.mark.parametrize("ulps", [0, 1, 2, 5])
 def test_the_misfit_of_a_stribeck_shape_is_not_named_as_a_change(ulps):
     # loop spec 13761: an asymmetric level beside Stribeck at 10 Hz with Student-t noise; before the forty-sixth round
     # an abrupt change took the level's part, ambiguous with a load, beside Stribeck ambiguous with an energy drift.
@@ -22,7 +22,8 @@ def test_the_misfit_of_a_stribeck_shape_is_not_named_as_a_change(ulps):
     # The log sits near a decision of the search: on an AVX2 CPU the log as generated (0 ulps) ends with the change
     # alone (a wrong name there), while the CPU that ran the round named the level and Stribeck; with the reference
     # moved by 1, 2 and 5 ulps (other last digits) the change is set aside on the AVX2 CPU too, by this check or by an
-    # earlier one of the confirmation loop
+    # earlier one of the confirmation loop; since the fifty-second round the change alone is set aside as well
+    # (core.sole_time_law_explained_by_state), so the log as generated is followed too
     mod, spec, log, truth = closed_loop_case(13761, reference_ulps=ulps)
     rep = diagnose(log, robot="generic", seed=0, simulate=False)
     d = rep.to_dict()

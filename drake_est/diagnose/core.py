@@ -1409,6 +1409,52 @@ def time_law_explained_by_state(prep, model, steps, alpha, min_gain):
     return None
 
 
+#: the variables of the final residual's structure (:func:`~drake_est.diagnose.unexplained.residual_structure`) that
+#: are the joint's state: :func:`sole_time_law_explained_by_state` runs where one of them is reported
+STATE_STRUCTURE = ("position", "velocity", "acceleration")
+
+
+def sole_time_law_explained_by_state(prep, model, unexplained, alpha, min_gain):
+    """A friction law in time (an energy drift or an abrupt change) that is the only law of its joint in the final
+    ``model`` (no single-joint finding outside :data:`~drake_est.diagnose.competition.TIME_LAWS` beside it, which
+    :func:`time_law_explained_by_state` checks), while the final residual of that joint holds structure in its state
+    (an ``unexplained`` entry in :data:`STATE_STRUCTURE`), and which a free function of the joint's state explains one
+    way only: the function explains the law (:func:`_state_explains`: given it the law's columns do not predict the
+    held-out residual, and the function alone predicts it at least as well as the law alone), and given the law the
+    function still predicts the held-out residual (partial held-out F-test at ``alpha``, gain ``min_gain``).  A change
+    of the friction over the log that the moves make look like a function of the state is explained by that function
+    and explains it back (loop spec 8484: a planted abrupt change at 50 Hz; the change given the function -2.2 %, the
+    function given the change -0.6 %): the two are kept apart only by the law.  A misfit of the state that the law
+    took in part is not (loop spec 13761 on an AVX2 CPU: an asymmetric level beside Stribeck at 10 Hz reported as an
+    abrupt change alone; the change given the function 1.1 %, the function given the change 47 %, p = 5e-50).
+    Returns the first such law as ``(effect, joint, why)``, else None."""
+    where = {}
+    for u in unexplained:
+        if u["variable"] in STATE_STRUCTURE:
+            where.setdefault(int(u["joint"]), []).append(u["variable"])
+    for e in model.exts:
+        if e.effect not in TIME_LAW_PAIR or e.shared or e.joint not in where:
+            continue
+        j = e.joint
+        if [x for x in model.exts if x.effect not in comp.TIME_LAWS and not x.shared and x.joint == j]:
+            continue
+        m0 = Model(prep, [x for x in model.exts if x is not e])
+        got = _state_explains(prep, m0, j, e.cols[j], alpha, min_gain)
+        if got is None:
+            continue
+        back = comp._partial_test(prep, m0, j, e.cols[j], got[0], alpha, min_gain, _model_solver(m0, j))
+        if not back["significant"]:
+            continue
+        why = _state_entry(j, got, "", f"the {e.effect.replace('_', ' ')}", "the law alone",
+                           f"; given the law the function lowers it by {100 * back['rmse_reduction']:.1f} % "
+                           f"(p = {back['p_value']:.2g}), and the final residual holds structure in "
+                           f"{', '.join(sorted(set(where[j])))}: the law took part of a misfit of the state, not a "
+                           "change of the friction over the log")
+        why.update(sole_law_in_time=True, state_given_law=comp._brief(back))
+        return e.effect, j, why
+    return None
+
+
 def _time_laws_beside_state(model, steps) -> list:
     """The single-joint energy drifts and abrupt changes of ``model`` that :func:`time_law_explained_by_state`
     checks, each with the laws of the state beside it on its joint (single-joint findings outside
@@ -1994,6 +2040,7 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
     n_time_curve = 0
     n_side = 0
     n_time_state = 0
+    n_sole_state = 0
 
     def close_and_search(effect, joint, entry):
         """Close ``effect`` on ``joint`` (None: a shared one), record ``entry`` among the findings set aside and run
@@ -2146,6 +2193,14 @@ def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings
                 if tstate is not None:
                     n_time_state += 1
                     effect, joint, why = tstate
+                    out = close_and_search(effect, joint, {"effect": effect, "joint": int(joint), **why})
+                    continue
+            if state is None and n_sole_state < MAX_NOT_CONFIRMED:
+                # ... and a law in time alone on its joint, where the final residual holds structure in the state
+                sole = sole_time_law_explained_by_state(prep, model, unexplained, alpha, min_gain)
+                if sole is not None:
+                    n_sole_state += 1
+                    effect, joint, why = sole
                     out = close_and_search(effect, joint, {"effect": effect, "joint": int(joint), **why})
                     continue
             if state is None:
