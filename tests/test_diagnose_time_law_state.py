@@ -142,3 +142,19 @@ def test_which_laws_in_time_the_state_check_holds():
     assert laws([drift, change0, _ext("position_dependent_load", joint=0)], []) == [
         ("abrupt_change", 0, ["position_dependent_load"])]
     assert laws([_ext("energy_dependent_friction", shared=True), load], []) == []
+
+
+@pytest.mark.long
+def test_a_change_and_the_state_function_that_explain_each_other_keep_the_change():
+    # loop spec 11098: an abrupt change and a motor ripple at 1000 Hz with Student-t noise; on an AVX2 CPU the check
+    # set the planted change aside beside the ripple (given the state's function it lowered the held-out RMSE by
+    # 0.6 %; the function alone by 64.7 %, the change alone by 64.3 %) and the search run again named an energy drift
+    # and a load.  Since the fifty-third round the law is set aside only one way: the function, given the change, must
+    # still predict the held-out residual
+    mod, spec, log, truth = closed_loop_case(11098)
+    rep = diagnose(log, robot="generic", seed=0, simulate=False)
+    d = rep.to_dict()
+    j = mod.judge(spec, d)
+    assert j["correct"] and not j["wrong"] and not j["missed"]
+    assert sorted(f["effect"] for f in d["findings"]) == ["abrupt_change", "motor_position_ripple"]
+    assert not [x for x in d["set_aside"] if x["effect"] == "abrupt_change" and x.get("explained_by_state")]
