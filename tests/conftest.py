@@ -66,13 +66,13 @@ def closed_loop_case(k: int, reference_ulps: int = 0):
     return (mod, spec) + tuple(mod.loop_log(spec, **kw))
 
 
-
 def search_names(d) -> list:
     """The effects a diagnosis search ``d`` (:func:`drake_est.diagnose.core.run_diagnosis`) names: each step's effect,
     then the rivals of the steps reported ambiguous."""
     from drake_est.diagnose import competition as comp
     return [st.ext.effect for st in d.steps] + [x for st in d.steps if st.competition.get("ambiguous")
                                                 for x in comp.ambiguous_rivals(st.competition)]
+
 
 def nominal_candidates(effects: dict, seed: int):
     """(prep, sigma, {effect: candidate}) of an open-loop testbench log (120 s at 100 Hz, noise 0.05) of a generic

@@ -1359,6 +1359,21 @@ def _state_explains(prep, m0, j, C, alpha, min_gain, without=()):
     return N, t, own, state
 
 
+def _state_explains_one_way(prep, m0, j, C, alpha, min_gain):
+    """``(what _state_explains returned, the function's partial test given C)`` when a free function of joint ``j``'s
+    state explains the finding with columns ``C`` (:func:`_state_explains`) and, given ``C``, still predicts the
+    held-out residual (partial held-out F-test at ``alpha``, gain ``min_gain``); None otherwise.  Where the function
+    explains the finding and the finding explains the function back, the two are kept apart only by the finding,
+    which then stays (a change of the friction over the log that the moves make look like a function of the state).
+    The checks of :func:`time_law_explained_by_state` (fifty-third round) and
+    :func:`sole_time_law_explained_by_state` (fifty-second round)."""
+    got = _state_explains(prep, m0, j, C, alpha, min_gain)
+    if got is None:
+        return None
+    back = comp._partial_test(prep, m0, j, C, got[0], alpha, min_gain, _model_solver(m0, j))
+    return (got, back) if back["significant"] else None
+
+
 def _state_entry(j, got, beside, what, alone, tail):
     """The set-aside entry of a finding a free function of joint ``j``'s state explains (``got``: what
     :func:`_state_explains` returned): the reason (``beside``: after the columns' count, ``what``: the finding,
@@ -1400,15 +1415,12 @@ def time_law_explained_by_state(prep, model, steps, alpha, min_gain):
     law as ``(effect, joint, why)``, else None."""
     for e, beside in _time_laws_beside_state(model, steps):
         j = e.joint
-        m0 = Model(prep, [x for x in model.exts if x is not e])
-        got = _state_explains(prep, m0, j, e.cols[j], alpha, min_gain)
-        if got is not None and not comp._partial_test(prep, m0, j, e.cols[j], got[0], alpha, min_gain,
-                                                      _model_solver(m0, j))["significant"]:
-            # the law and the function explain each other (loop spec 11098 on an AVX2 CPU: a planted change beside
-            # a ripple at 1000 Hz, 0.6 % given the function, the function alone 64.7 %, the change alone 64.3 %):
-            # only the law keeps them apart, as in sole_time_law_explained_by_state
-            continue
-        if got is not None:
+        # one way only (loop spec 11098 on an AVX2 CPU: a planted change beside a ripple at 1000 Hz, 0.6 % given the
+        # function, the function alone 64.7 %, the change alone 64.3 %)
+        one_way = _state_explains_one_way(prep, Model(prep, [x for x in model.exts if x is not e]), j, e.cols[j],
+                                          alpha, min_gain)
+        if one_way is not None:
+            got = one_way[0]
             if beside == ["stribeck"]:
                 where, cause = " beside its Stribeck law", "the Stribeck law's shape"
             else:
@@ -1446,15 +1458,13 @@ def sole_time_law_explained_by_state(prep, model, unexplained, alpha, min_gain):
         if e.effect not in TIME_LAW_PAIR or e.shared or e.joint not in where:
             continue
         j = e.joint
-        if [x for x in model.exts if x.effect not in comp.TIME_LAWS and not x.shared and x.joint == j]:
+        if _laws_of_state(model, j):
             continue
-        m0 = Model(prep, [x for x in model.exts if x is not e])
-        got = _state_explains(prep, m0, j, e.cols[j], alpha, min_gain)
-        if got is None:
+        one_way = _state_explains_one_way(prep, Model(prep, [x for x in model.exts if x is not e]), j, e.cols[j],
+                                          alpha, min_gain)
+        if one_way is None:
             continue
-        back = comp._partial_test(prep, m0, j, e.cols[j], got[0], alpha, min_gain, _model_solver(m0, j))
-        if not back["significant"]:
-            continue
+        got, back = one_way
         why = _state_entry(j, got, "", f"the {e.effect.replace('_', ' ')}", "the law alone",
                            f"; given the law the function lowers it by {100 * back['rmse_reduction']:.1f} % "
                            f"(p = {back['p_value']:.2g}), and the final residual holds structure in "
@@ -1463,6 +1473,12 @@ def sole_time_law_explained_by_state(prep, model, unexplained, alpha, min_gain):
         why.update(sole_law_in_time=True, state_given_law=comp._brief(back))
         return e.effect, j, why
     return None
+
+
+def _laws_of_state(model, j) -> list:
+    """The effects (sorted, each once) of ``model``'s single-joint findings on joint ``j`` outside
+    :data:`~drake_est.diagnose.competition.TIME_LAWS`: the laws of the state a law in time may stand beside."""
+    return sorted({x.effect for x in model.exts if x.effect not in comp.TIME_LAWS and not x.shared and x.joint == j})
 
 
 def _time_laws_beside_state(model, steps) -> list:
@@ -1477,8 +1493,7 @@ def _time_laws_beside_state(model, steps) -> list:
     for e in model.exts:
         if e.effect not in TIME_LAW_PAIR or e.shared:
             continue
-        beside = sorted({x.effect for x in model.exts
-                         if x.effect not in comp.TIME_LAWS and not x.shared and x.joint == e.joint})
+        beside = _laws_of_state(model, e.joint)
         if "stribeck" in beside:
             out.append((e, ["stribeck"]))
         elif beside and not [r for r in rivals.get((e.effect, e.joint), []) if r and r not in comp.TIME_LAWS]:
