@@ -5,12 +5,18 @@ For closed-loop benchmark logs (by default every kept row that records a backfit
 ``--k``), the diagnosis is run with a probe around :func:`drake_est.diagnose.core.backfit_inertia` that records, at
 its call, the J that the same fit gives on: all training rows (the backfit's estimate), the held-out rows, and the
 training rows of the 50 %, 20 % and 10 % largest |qdd|; beside them prepare's J, the generator's J and the rule's
-decision.  The probe returns what the backfit returns, so the diagnosis is the same as without it.  The summary
+decision; and the J of the same fit with a free friction curve of the joint's speed beside the findings
+(``curve``: :func:`drake_est.diagnose.competition.speed_law_nuisance` with knots spread in log-speed, as nuisance
+columns; tried in the sixteenth session of issue 16, not in the diagnosis).  The probe returns what the backfit
+returns, so the diagnosis is the same as without it; ``--stop-at-backfit`` ends each diagnosis at that call (the
+row's ``got`` is then None).  The summary
 also applies the tried rule to the recorded numbers (``tried_confirm``: the move only when J + dJ > 0 and the
 rows of the 20 % largest |qdd| give a positive J within a factor 2 of it).
 
     python benchmarks/probe_inertia_backfit.py --json benchmarks/results/diagnose_inertia_backfit_probe.json \\
         --k 11834
+    python benchmarks/probe_inertia_backfit.py --large-moves 2 --stop-at-backfit \
+        --json benchmarks/results/diagnose_inertia_backfit_curve_probe.json --k 7238
 
 Prints, per estimator, how many logs end with J within a factor 1.5 of the generator's, and the logs that do not.
 """
@@ -37,6 +43,21 @@ def correction(A, y):
     return None if A.shape[0] <= A.shape[1] else first_coefficient(A, y)
 
 
+def projected_coefficient(a, Z, y):
+    """(coefficient, standard error) of a in the least-squares fit of y on [a, Z], with Z's span taken by an SVD
+    (Z may be rank deficient: a Stribeck finding's column lies in the span of the speed curve); None when a is in
+    Z's span."""
+    U, sv, _ = np.linalg.svd(Z, full_matrices=False)
+    U = U[:, sv > 1e-9 * sv[0]] if sv.size else U
+    ar, yr = a - U @ (U.T @ a), y - U @ (U.T @ y)
+    if ar @ ar <= 1e-12 * (a @ a):
+        return None
+    c = float(ar @ yr) / float(ar @ ar)
+    e = yr - c * ar
+    dof = max(y.size - U.shape[1] - 1, 1)
+    return c, float(np.sqrt(float(e @ e) / dof / float(ar @ ar)))
+
+
 def probe_call(prep, model, out) -> dict:
     """{joint: record} of one backfit call: prepare's J, the rule's move (or None) and the J of each subset."""
     from drake_est.diagnose import core
@@ -59,11 +80,23 @@ def probe_call(prep, model, out) -> dict:
                                            and abs(dJ) > core.INERTIA_BACKFIT_REL * abs(J))
         est = correction(A[jd.val], jd.y[jd.val])
         r["J_val"] = None if est is None else float(J + est[0])
+        from drake_est.diagnose import competition as comp
+        N = comp.speed_law_nuisance(prep, j, spread=True)
+        Z = A[:, 1:] if N is None else np.column_stack([A[:, 1:], N])
+        est = projected_coefficient(qdd[jd.train], Z[jd.train], jd.y[jd.train])
+        r["J_curve"] = None if est is None else float(J + est[0])
+        r["J_curve_se"] = None if est is None else est[1]
+        r["curve_rule_moves"] = est is not None and bool(abs(est[0]) > core.INERTIA_BACKFIT_Z * est[1]
+                                                         and abs(est[0]) > core.INERTIA_BACKFIT_REL * abs(J))
         rec[str(j)] = r
     return rec
 
 
-def run(ks):
+class _Stop(Exception):
+    """Ends a diagnosis at the backfit's first call (``--stop-at-backfit``)."""
+
+
+def run(ks, stop=False):
     from drake_est.diagnose import core, diagnose
     orig = core.backfit_inertia
     calls = []
@@ -71,6 +104,8 @@ def run(ks):
     def probed(prep, model, fit):
         out = orig(prep, model, fit)
         calls.append(probe_call(prep, model, out))
+        if stop:
+            raise _Stop
         return out
 
     core.backfit_inertia = probed
@@ -80,8 +115,11 @@ def run(ks):
             calls.clear()
             spec = b.loop_cases(k + 1)[k]
             log, truth = b.loop_log(spec)
-            d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
-            row = {"k": k, "truth": b._label(spec["effects"], truth["not_visible"]), "got": b._got(d),
+            try:
+                got = b._got(diagnose(log, robot="generic", seed=0, simulate=False).to_dict())
+            except _Stop:
+                got = None
+            row = {"k": k, "truth": b._label(spec["effects"], truth["not_visible"]), "got": got,
                    "J_generator": float(truth["J"]), "calls": list(calls)}
             rows.append(row)
             print(json.dumps(row), flush=True)
@@ -100,6 +138,8 @@ def summary(rows) -> dict:
             return r["J_train"] if r.get("old_rule_moves") else J
         if key == "rule":
             return r["moved_to"] if r["moved_to"] is not None else J
+        if key == "curve_rule":
+            return r["J_curve"] if r.get("curve_rule_moves") else J
         if key == "tried_confirm":
             Jn, Jt = r["J_train"], r["J_top20"]
             ok = r.get("old_rule_moves") and Jn > 0 and Jt is not None and Jt > 0 and max(Jn / Jt, Jt / Jn) <= 2.0
@@ -108,7 +148,11 @@ def summary(rows) -> dict:
     out = {}
     recs = [(row["k"], row["J_generator"], c) for row in rows if row["calls"] for c in row["calls"][:1]
             for c in c.values()]
-    for key in ("prepare", "old_rule", "rule", "tried_confirm", "train", "val", "top50", "top20", "top10"):
+    for key in ("prepare", "old_rule", "rule", "tried_confirm", "curve_rule", "train", "val", "top50", "top20",
+                "top10", "curve"):
+        if not any(f"J_{key.removesuffix('_rule')}" in r or key in ("prepare", "old_rule", "rule", "tried_confirm")
+                   for _, _, r in recs):
+            continue    # a JSON written before the estimator was added
         bad = []
         for k, Jg, r in recs:
             J = final(r, key)
@@ -125,13 +169,24 @@ def main(argv=None):
     ap.add_argument("--json", default=None)
     ap.add_argument("--k", type=int, nargs="*", default=[], help="more closed-loop spec indices")
     ap.add_argument("--only-k", type=int, nargs="*", default=None, help="these spec indices only")
+    ap.add_argument("--large-moves", type=float, default=None, metavar="F",
+                    help="only the kept rows whose recorded move changes J by more than a factor F (or flips its sign)")
+    ap.add_argument("--stop-at-backfit", action="store_true",
+                    help="end each diagnosis at the backfit's first call (faster; the rows' got is None)")
+    ap.add_argument("--lane", default=None, help="i/n: every n-th log from the i-th")
     args = ap.parse_args(argv)
     if args.only_k is not None:
         ks = list(args.only_k)
     else:
+        def large(r):
+            return any(a <= 0 or c <= 0 or max(c / a, a / c) > args.large_moves for a, c in r["inertia_backfit"].values())
         ks = sorted({r["k"] for key, (_, r) in b.kept_rows_naming("any").items()
-                     if key[0] == "loop" and "inertia_backfit" in r} | set(args.k))
-    rows = run(ks)
+                     if key[0] == "loop" and "inertia_backfit" in r and (args.large_moves is None or large(r))}
+                    | set(args.k))
+    if args.lane:
+        i, n = map(int, args.lane.split("/"))
+        ks = ks[i::n]
+    rows = run(ks, stop=args.stop_at_backfit)
     out = {"what": "inertia backfit probe (benchmarks/probe_inertia_backfit.py)", "logs": len(rows),
            "summary": summary(rows), "rows": rows}
     if args.json:
