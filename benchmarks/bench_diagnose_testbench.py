@@ -297,6 +297,12 @@ def _row(k, family, robot, spec, log, d, dt, not_visible=None):
                if "J_before_backfit" in p}
     if backfit:
         r["inertia_backfit"] = backfit
+    # a large move that the fit beside a free speed curve contradicts, withheld ([J moved to, J beside the curve];
+    # rows since the fifty-fourth round)
+    withheld = {j: [p["J_backfit_withheld"]["J_moved"], p["J_backfit_withheld"]["J_speed_curve"]]
+                for j, p in ((d.get("nominal") or {}).get("parameters") or {}).items() if "J_backfit_withheld" in p}
+    if withheld:
+        r["inertia_backfit_withheld"] = withheld
     if nv:
         r["not_visible"] = nv
     return r

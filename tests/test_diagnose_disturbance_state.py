@@ -13,10 +13,14 @@ from conftest import closed_loop_case, search_names
 
 
 @pytest.mark.parametrize("ulps", [0, pytest.param(3, marks=pytest.mark.long)])
-def test_a_slow_misfit_of_the_state_is_not_named_a_disturbance(ulps):
+def test_a_slow_misfit_of_the_state_is_not_named_a_disturbance(monkeypatch, ulps):
     # loop spec 10942: a position load beside a Lorentzian Stribeck law at 250 Hz, nearly every moving sample below
     # twice the Stribeck speed; before the thirty-sixth round a disturbance at 0.087 Hz (17 % lower held-out RMSE, not
-    # planted, not at a line of the motion) was named for the misfit
+    # planted, not at a line of the motion) was named for the misfit.  The disturbance comes up after the inertia
+    # backfit's move of J (1.35 -> 8.3, the generator's 1.27), which the fifty-fourth round's check withholds
+    # (test_a_withheld_inertia_move_leaves_no_disturbance_to_set_aside): the check of the state is followed with the
+    # move made
+    monkeypatch.setattr(core, "inertia_move_contradicted", lambda *a, **k: None)
     mod, spec, _, _ = closed_loop_case(10942)
     planted = {e for e in spec["effects"] if not e.startswith("_")}
     log, _ = mod.loop_log(spec, reference_ulps=ulps)
@@ -28,6 +32,20 @@ def test_a_slow_misfit_of_the_state_is_not_named_a_disturbance(ulps):
     assert not (t["p_value"] < core.ALPHA and t["rmse_reduction"] >= core.MIN_GAIN)
     assert "function of the state of joint 1" in away[0]["reason"]
     # what is named is planted (the level is ambiguous with the planted load)
+    named = set(search_names(d))
+    assert named & planted and named <= planted | {"asymmetric_coulomb"}
+
+
+@pytest.mark.long
+def test_a_withheld_inertia_move_leaves_no_disturbance_to_set_aside():
+    # the same log with the fifty-fourth round's check: J stays at prepare's, and no disturbance comes up at all
+    mod, spec, log, truth = closed_loop_case(10942)
+    planted = {e for e in spec["effects"] if not e.startswith("_")}
+    d = run_diagnosis(log, robot="generic")
+    jd = d.prep.joints[1]
+    assert "inertia_backfit_withheld" in jd.counts and "inertia_before_backfit" not in jd.counts
+    assert jd.counts["inertia"] == pytest.approx(truth["J"], rel=0.1)
+    assert not [x for x in d.prep.meta["set_aside"] if x.get("explained_by_state")]
     named = set(search_names(d))
     assert named & planted and named <= planted | {"asymmetric_coulomb"}
 
@@ -80,8 +98,10 @@ def test_the_blocks_a_disturbance_drives_are_left_out():
 
 
 @pytest.mark.long
-def test_the_report_says_why_the_disturbance_was_set_aside(tmp_path):
+def test_the_report_says_why_the_disturbance_was_set_aside(monkeypatch, tmp_path):
     from drake_est.diagnose import diagnose
+    # with the inertia backfit's move made, as in test_a_slow_misfit_of_the_state_is_not_named_a_disturbance
+    monkeypatch.setattr(core, "inertia_move_contradicted", lambda *a, **k: None)
     mod, spec, log, truth = closed_loop_case(10942)
     rep = diagnose(log, robot="generic", simulate=False)
     rep.write(tmp_path)

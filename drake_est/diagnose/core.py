@@ -59,6 +59,9 @@ RIDGE = 1e-4           # relative ridge on extension columns (times each column'
 INERTIA_BACKFIT_Z = 5.0
 #: ... and this fraction of J
 INERTIA_BACKFIT_REL = 0.05
+#: a correction that changes J by more than this factor, or leaves J <= 0, must not be contradicted by the same
+#: estimate beside a free friction curve of the speed (:func:`inertia_move_contradicted`)
+INERTIA_BACKFIT_LARGE = 2.0
 
 
 def _ridge_lstsq(A, y, penalize):
@@ -927,8 +930,58 @@ def backfit_inertia(prep, model, fit) -> dict:
             continue    # qdd not excited on the selected rows, or collinear with the model: keep J
         dJ, se = est
         if abs(dJ) > INERTIA_BACKFIT_Z * se and abs(dJ) > INERTIA_BACKFIT_REL * abs(J):
+            why = inertia_move_contradicted(prep, model, j, J, J + dJ)
+            if why is not None:
+                jd.counts["inertia_backfit_withheld"] = why
+                continue
             out[j] = (float(J), float(J + dJ))
     return out
+
+
+def inertia_move_contradicted(prep, model, j, J, J_new) -> dict | None:
+    """A large move of the inertia backfit (:func:`backfit_inertia`: J -> ``J_new``, by more than a factor
+    :data:`INERTIA_BACKFIT_LARGE` or to J_new <= 0) that the same fit with a free friction curve of the joint's speed
+    beside the findings (:func:`~drake_est.diagnose.competition.speed_law_nuisance`, knots spread in log-speed)
+    contradicts: that fit's J differs from ``J_new`` by more than :data:`INERTIA_BACKFIT_Z` of its standard errors.
+    The backfit regresses the torque on qdd beside the findings over the training rows; a friction law of the speed
+    that no finding holds yet (a Stribeck hump under point-to-point moves, where the speed and the acceleration
+    change together at every start and stop) is then fitted by the qdd column, and J moves far (loop spec 12199: an
+    asymmetric level beside Stribeck at 100 Hz, J 0.467 -> 3.97 while the generator's is 0.477; 2406: a load beside
+    Stribeck at 1000 Hz, 1.81 -> -1.76, the generator's 1.89; the search run again names what the wrong J leaves).
+    With the curve as nuisance, qdd can only take what no law of the speed explains (12199: -0.29 +- 0.63; 2406:
+    1.69).  Returns {J_moved, J_speed_curve, standard_error, speed_curve_columns} when the move is withheld, else
+    None (a small move, a move the curve's fit allows, or no curve: too few training samples per direction)."""
+    if J_new > 0 and J > 0 and max(J_new / J, J / J_new) <= INERTIA_BACKFIT_LARGE:
+        return None
+    N = comp.speed_law_nuisance(prep, j, spread=True)
+    if N is None:
+        return None
+    jd = prep.joints[j]
+    tr = jd.train
+    est = projected_coefficient(jd.a[jd.rows][tr], np.column_stack([model.design_with_shared(j), N])[tr], jd.y[tr])
+    if est is None:
+        return None
+    dJ, se = est
+    if abs(J + dJ - J_new) <= INERTIA_BACKFIT_Z * se:
+        return None
+    return {"J_moved": float(J_new), "J_speed_curve": float(J + dJ), "standard_error": float(se),
+            "speed_curve_columns": int(N.shape[1])}
+
+
+def projected_coefficient(a, Z, y):
+    """(coefficient, standard error) of the column ``a`` in the least-squares fit of ``y`` on [a, Z], where ``Z`` may be
+    rank deficient (a Stribeck finding's column lies in the span of a free speed curve): Z's span is taken by an SVD
+    (singular values above 1e-9 of the largest), and a and y are projected off it.  None when a lies in that span."""
+    U, sv, _ = np.linalg.svd(Z, full_matrices=False)
+    U = U[:, sv > 1e-9 * sv[0]] if sv.size else U
+    ar, yr = a - U @ (U.T @ a), y - U @ (U.T @ y)
+    aa = float(ar @ ar)
+    if aa <= 1e-12 * float(a @ a):
+        return None
+    c = float(ar @ yr) / aa
+    e = yr - c * ar
+    dof = max(y.size - U.shape[1] - 1, 1)
+    return c, float(np.sqrt(float(e @ e) / dof / aa))
 
 
 def first_coefficient(A, y):

@@ -153,7 +153,8 @@ class DiagnosisReport:
                 "duration_s": float(log.duration), "sample_rate_hz": float(log.sample_rate), "robot": self.robot,
                 "skipped_joints": {str(j): r for j, r in prep.skipped.items()},
                 "excluded": {str(j): {k: v for k, v in jd.counts.items()
-                                     if k not in ("thresholds", "inertia", "inertia_before_backfit")}
+                                     if k not in ("thresholds", "inertia", "inertia_before_backfit",
+                                                  "inertia_backfit_withheld")}
                              for j, jd in prep.joints.items()},
                 "selection": {str(j): jd.counts["thresholds"] for j, jd in prep.joints.items()},
                 "split": (f"whole logs ({int(log.meta.get('n_logs', 0))}): odd-numbered logs (1, 3, ...) train, even-numbered "
@@ -172,6 +173,9 @@ class DiagnosisReport:
             if "inertia_before_backfit" in jd.counts:
                 # J identified before the findings (prepare) and moved by backfit_inertia: closed-loop bias
                 p["J_before_backfit"] = jd.counts["inertia_before_backfit"]
+            if "inertia_backfit_withheld" in jd.counts:
+                # a large move that the fit beside a free friction curve of the speed contradicts (kept at J)
+                p["J_backfit_withheld"] = jd.counts["inertia_backfit_withheld"]
             nom_params[str(j)] = p
         nominal = {"validation": res.nominal_validation,
                    "per_joint": {str(j): m for j, m in res.nominal_validation_joint.items()},
