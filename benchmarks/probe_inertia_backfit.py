@@ -5,17 +5,17 @@ For closed-loop benchmark logs (by default every kept row that records a backfit
 ``--k``), the diagnosis is run with a probe around :func:`drake_est.diagnose.core.backfit_inertia` that records, at
 its call, the J that the same fit gives on: all training rows (the backfit's estimate), the held-out rows, and the
 training rows of the 50 %, 20 % and 10 % largest |qdd|; beside them prepare's J, the generator's J and the rule's
-decision; and the J of the same fit with a free friction curve of the joint's speed beside the findings
-(``curve``: :func:`drake_est.diagnose.competition.speed_law_nuisance` with knots spread in log-speed, as nuisance
-columns; tried in the sixteenth session of issue 16, not in the diagnosis).  The probe returns what the backfit
-returns, so the diagnosis is the same as without it; ``--stop-at-backfit`` ends each diagnosis at that call (the
-row's ``got`` is then None).  The summary
-also applies the tried rule to the recorded numbers (``tried_confirm``: the move only when J + dJ > 0 and the
-rows of the 20 % largest |qdd| give a positive J within a factor 2 of it).
+decision (``old_rule_moves``; ``moved_to``: the move the diagnosis makes, None where the fifty-fourth round's check
+withholds it); and the J of the same fit with a free friction curve of the joint's speed beside the findings
+(``J_curve`` with ``J_curve_se``: the fit of :func:`drake_est.diagnose.core.inertia_move_contradicted`).  The probe
+returns what the backfit returns, so the diagnosis is the same as without it; ``--stop-at-backfit`` ends each
+diagnosis at that call (the row's ``got`` is then None).  The summary also applies the tried rule to the recorded
+numbers (``tried_confirm``: the move only when J + dJ > 0 and the rows of the 20 % largest |qdd| give a positive J
+within a factor 2 of it).
 
     python benchmarks/probe_inertia_backfit.py --json benchmarks/results/diagnose_inertia_backfit_probe.json \\
         --k 11834
-    python benchmarks/probe_inertia_backfit.py --large-moves 2 --stop-at-backfit \
+    python benchmarks/probe_inertia_backfit.py --large-moves 2 --stop-at-backfit \\
         --json benchmarks/results/diagnose_inertia_backfit_curve_probe.json --k 7238
 
 Prints, per estimator, how many logs end with J within a factor 1.5 of the generator's, and the logs that do not.
@@ -43,21 +43,6 @@ def correction(A, y):
     return None if A.shape[0] <= A.shape[1] else first_coefficient(A, y)
 
 
-def projected_coefficient(a, Z, y):
-    """(coefficient, standard error) of a in the least-squares fit of y on [a, Z], with Z's span taken by an SVD
-    (Z may be rank deficient: a Stribeck finding's column lies in the span of the speed curve); None when a is in
-    Z's span."""
-    U, sv, _ = np.linalg.svd(Z, full_matrices=False)
-    U = U[:, sv > 1e-9 * sv[0]] if sv.size else U
-    ar, yr = a - U @ (U.T @ a), y - U @ (U.T @ y)
-    if ar @ ar <= 1e-12 * (a @ a):
-        return None
-    c = float(ar @ yr) / float(ar @ ar)
-    e = yr - c * ar
-    dof = max(y.size - U.shape[1] - 1, 1)
-    return c, float(np.sqrt(float(e @ e) / dof / float(ar @ ar)))
-
-
 def probe_call(prep, model, out) -> dict:
     """{joint: record} of one backfit call: prepare's J, the rule's move (or None) and the J of each subset."""
     from drake_est.diagnose import core
@@ -83,7 +68,7 @@ def probe_call(prep, model, out) -> dict:
         from drake_est.diagnose import competition as comp
         N = comp.speed_law_nuisance(prep, j, spread=True)
         Z = A[:, 1:] if N is None else np.column_stack([A[:, 1:], N])
-        est = projected_coefficient(qdd[jd.train], Z[jd.train], jd.y[jd.train])
+        est = core.projected_coefficient(qdd[jd.train], Z[jd.train], jd.y[jd.train])
         r["J_curve"] = None if est is None else float(J + est[0])
         r["J_curve_se"] = None if est is None else est[1]
         r["curve_rule_moves"] = est is not None and bool(abs(est[0]) > core.INERTIA_BACKFIT_Z * est[1]
@@ -179,7 +164,8 @@ def main(argv=None):
         ks = list(args.only_k)
     else:
         def large(r):
-            return any(a <= 0 or c <= 0 or max(c / a, a / c) > args.large_moves for a, c in r["inertia_backfit"].values())
+            return any(a <= 0 or c <= 0 or max(c / a, a / c) > args.large_moves
+                       for a, c in r["inertia_backfit"].values())
         ks = sorted({r["k"] for key, (_, r) in b.kept_rows_naming("any").items()
                      if key[0] == "loop" and "inertia_backfit" in r and (args.large_moves is None or large(r))}
                     | set(args.k))

@@ -947,7 +947,7 @@ def inertia_move_contradicted(prep, model, j, J, J_new) -> dict | None:
     that no finding holds yet (a Stribeck hump under point-to-point moves, where the speed and the acceleration
     change together at every start and stop) is then fitted by the qdd column, and J moves far (loop spec 12199: an
     asymmetric level beside Stribeck at 100 Hz, J 0.467 -> 3.97 while the generator's is 0.477; 2406: a load beside
-    Stribeck at 1000 Hz, 1.81 -> -1.76, the generator's 1.89; the search run again names what the wrong J leaves).
+    Stribeck at 1000 Hz, 1.81 -> -1.8, the generator's 1.89; the search run again names what the wrong J leaves).
     With the curve as nuisance, qdd can only take what no law of the speed explains (12199: -0.29 +- 0.63; 2406:
     1.69).  Returns {J_moved, J_speed_curve, standard_error, speed_curve_columns} when the move is withheld, else
     None (a small move, a move the curve's fit allows, or no curve: too few training samples per direction)."""
