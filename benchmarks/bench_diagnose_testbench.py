@@ -293,14 +293,14 @@ def _row(k, family, robot, spec, log, d, dt, not_visible=None):
          "set_aside": [x.get("effect") for x in d.get("set_aside") or []], **j}
     # the inertia backfit's move, per joint where it moved J ([J identified by prepare, J after the backfit]; rows
     # since the thirty-sixth round): a change to core.backfit_inertia can only touch the logs that record one
-    backfit = {j: [p["J_before_backfit"], p["J"]] for j, p in ((d.get("nominal") or {}).get("parameters") or {}).items()
-               if "J_before_backfit" in p}
+    params = (d.get("nominal") or {}).get("parameters") or {}
+    backfit = {j: [p["J_before_backfit"], p["J"]] for j, p in params.items() if "J_before_backfit" in p}
     if backfit:
         r["inertia_backfit"] = backfit
     # a large move that the fit beside a free speed curve contradicts, withheld ([J moved to, J beside the curve];
     # rows since the fifty-fourth round)
     withheld = {j: [p["J_backfit_withheld"]["J_moved"], p["J_backfit_withheld"]["J_speed_curve"]]
-                for j, p in ((d.get("nominal") or {}).get("parameters") or {}).items() if "J_backfit_withheld" in p}
+                for j, p in params.items() if "J_backfit_withheld" in p}
     if withheld:
         r["inertia_backfit_withheld"] = withheld
     if nv:

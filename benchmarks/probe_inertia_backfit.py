@@ -7,7 +7,8 @@ its call, the J that the same fit gives on: all training rows (the backfit's est
 training rows of the 50 %, 20 % and 10 % largest |qdd|; beside them prepare's J, the generator's J and the rule's
 decision (``old_rule_moves``; ``moved_to``: the move the diagnosis makes, None where the fifty-fourth round's check
 withholds it); and the J of the same fit with a free friction curve of the joint's speed beside the findings
-(``J_curve`` with ``J_curve_se``: the fit of :func:`drake_est.diagnose.core.inertia_move_contradicted`).  The probe
+(``J_curve`` with ``J_curve_se``: :func:`drake_est.diagnose.core.inertia_correction_beside_speed_curve`, the fit of
+:func:`drake_est.diagnose.core.inertia_move_contradicted`; None without a curve).  The probe
 returns what the backfit returns, so the diagnosis is the same as without it; ``--stop-at-backfit`` ends each
 diagnosis at that call (the row's ``got`` is then None).  The summary also applies the tried rule to the recorded
 numbers (``tried_confirm``: the move only when J + dJ > 0 and the rows of the 20 % largest |qdd| give a positive J
@@ -65,10 +66,7 @@ def probe_call(prep, model, out) -> dict:
                                            and abs(dJ) > core.INERTIA_BACKFIT_REL * abs(J))
         est = correction(A[jd.val], jd.y[jd.val])
         r["J_val"] = None if est is None else float(J + est[0])
-        from drake_est.diagnose import competition as comp
-        N = comp.speed_law_nuisance(prep, j, spread=True)
-        Z = A[:, 1:] if N is None else np.column_stack([A[:, 1:], N])
-        est = core.projected_coefficient(qdd[jd.train], Z[jd.train], jd.y[jd.train])
+        est = core.inertia_correction_beside_speed_curve(prep, model, j)
         r["J_curve"] = None if est is None else float(J + est[0])
         r["J_curve_se"] = None if est is None else est[1]
         r["curve_rule_moves"] = est is not None and bool(abs(est[0]) > core.INERTIA_BACKFIT_Z * est[1]

@@ -953,19 +953,29 @@ def inertia_move_contradicted(prep, model, j, J, J_new) -> dict | None:
     None (a small move, a move the curve's fit allows, or no curve: too few training samples per direction)."""
     if J_new > 0 and J > 0 and max(J_new / J, J / J_new) <= INERTIA_BACKFIT_LARGE:
         return None
+    est = inertia_correction_beside_speed_curve(prep, model, j)
+    if est is None:
+        return None
+    dJ, se, n_curve = est
+    if abs(J + dJ - J_new) <= INERTIA_BACKFIT_Z * se:
+        return None
+    return {"J_moved": float(J_new), "J_speed_curve": float(J + dJ), "standard_error": float(se),
+            "speed_curve_columns": n_curve}
+
+
+def inertia_correction_beside_speed_curve(prep, model, j):
+    """``(dJ, standard error, curve columns)``: the correction of joint ``j``'s inertia that :func:`backfit_inertia`'s
+    fit gives (the torque on qdd beside ``model``'s findings over the training rows) with a free friction curve of the
+    joint's speed as nuisance columns (:func:`~drake_est.diagnose.competition.speed_law_nuisance`, knots spread in
+    log-speed), by :func:`projected_coefficient`; None when there is no curve (too few training samples per
+    direction) or qdd lies in the span of the findings and the curve (:func:`inertia_move_contradicted`)."""
     N = comp.speed_law_nuisance(prep, j, spread=True)
     if N is None:
         return None
     jd = prep.joints[j]
     tr = jd.train
     est = projected_coefficient(jd.a[jd.rows][tr], np.column_stack([model.design_with_shared(j), N])[tr], jd.y[tr])
-    if est is None:
-        return None
-    dJ, se = est
-    if abs(J + dJ - J_new) <= INERTIA_BACKFIT_Z * se:
-        return None
-    return {"J_moved": float(J_new), "J_speed_curve": float(J + dJ), "standard_error": float(se),
-            "speed_curve_columns": int(N.shape[1])}
+    return None if est is None else (est[0], est[1], int(N.shape[1]))
 
 
 def projected_coefficient(a, Z, y):
