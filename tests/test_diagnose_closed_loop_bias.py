@@ -54,6 +54,21 @@ def test_inertia_backfit_removes_closed_loop_bias():
     assert p["J"] == pytest.approx(c["inertia"], rel=1e-4)
     assert p["J_before_backfit"] == pytest.approx(c["inertia_before_backfit"], rel=1e-4)
     assert "inertia_before_backfit" not in d["data"]["excluded"]["1"]
+    # report.md says it in words, not as a raw parameter
+    from drake_est.diagnose.report import markdown
+    md = markdown(d)
+    assert "J_before_backfit" not in md
+    assert f"J was identified as {p['J_before_backfit']:.4g} before the findings" in md
+
+
+def test_report_sentence_of_a_withheld_inertia_move():
+    from drake_est.diagnose.report import _inertia_backfit_lines
+    p = {"kv": 1.0, "J": 0.467, "J_backfit_withheld": {"J_moved": 3.97, "J_speed_curve": -0.29,
+                                                         "standard_error": 0.63, "speed_curve_columns": 12}}
+    (line,) = _inertia_backfit_lines(p)
+    assert line.startswith("J kept at 0.467: re-estimating it beside the findings gave 3.97")
+    assert "-0.29 +- 0.63" in line
+    assert _inertia_backfit_lines({"kv": 1.0, "J": 0.5}) == []
 
 
 def test_stribeck_seen_only_on_its_falling_flank():

@@ -321,6 +321,24 @@ def _fmt(x):
     return str(x)
 
 
+def _inertia_backfit_lines(p: dict) -> list:
+    """Sentences on the inertia backfit of a generic axis (core.backfit_inertia) for report.md, from the nominal
+    parameters of one joint: J moved once the findings were in the model, or a large move withheld
+    (core.inertia_move_contradicted)."""
+    out = []
+    if "J_before_backfit" in p:
+        out.append(f"J was identified as {_fmt(float(p['J_before_backfit']))} before the findings and re-estimated "
+                   f"beside them as {_fmt(float(p['J']))} (an unmodeled torque biases the first fit of "
+                   "closed-loop data)")
+    w = p.get("J_backfit_withheld")
+    if isinstance(w, dict):
+        out.append(f"J kept at {_fmt(float(p['J']))}: re-estimating it beside the findings gave "
+                   f"{_fmt(float(w['J_moved']))}, but the same fit with a free friction curve of the speed gives "
+                   f"{_fmt(float(w['J_speed_curve']))} +- {_fmt(float(w['standard_error']))}, which contradicts "
+                   "the move (a friction law of the speed that no finding holds is then taken for inertia)")
+    return out
+
+
 def _num(x, spec):
     """A number of the report as text; None (undefined, written as null) as 'undefined'."""
     return "undefined" if x is None else format(x, spec)
@@ -352,7 +370,9 @@ def markdown(d: dict) -> str:
     L.append(f"The nominal model ({d['nominal']['model']}) leaves a held-out RMSE of **{_num(nv['rmse'], '.4g')} {u}** "
              f"(MAE {nv['mae']:.4g}, Fit {_num(nv['fit'], '.1f')} %, FPE {nv['fpe']:.4g}).")
     for j, p in d["nominal"]["parameters"].items():
-        L.append(f"- joint {j}: " + ", ".join(f"{k} = {_fmt(v)}" for k, v in p.items()))
+        L.append(f"- joint {j}: " + ", ".join(f"{k} = {_fmt(v)}" for k, v in p.items()
+                                               if k not in ("J_before_backfit", "J_backfit_withheld")))
+        L += [f"  - {s}" for s in _inertia_backfit_lines(p)]
     files = d.get("files", [])
     for f in files:
         if f.startswith("residual"):
