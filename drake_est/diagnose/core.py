@@ -872,11 +872,37 @@ def backfit_periodic(prep, model, fit, sigma):
     return _backfit(prep, model, fit, sigma, "time_periodic_disturbance", redetect)
 
 
+def backfit_ripple(prep, model, fit, sigma):
+    """Backfitting of an accepted motor-position ripple (:func:`_backfit`): its frequencies were found on the
+    residual of the model at the time it was accepted, where a larger effect not yet in the model (an abrupt change
+    of the friction, say) biases the scan's peak; a ripple at a slightly wrong frequency leaves a phase misfit that
+    drifts over the joint's range, which a position law later takes.  Once later findings are in the model the
+    ripple is detected again on its partial residual (:func:`~drake_est.diagnose.detectors.ripple` with the inner
+    split of the model without it) and replaced when that lowers the training residual; the new extension's evidence
+    holds ``backfitted_from_frequencies_per_arm_rad``."""
+    def redetect(model, e, jd, r_p):
+        m0 = Model(prep, [x for x in model.exts if x is not e])
+        inner = _inner_fits(m0, jd)
+        new = det.ripple(jd, r_p, n_components=RIPPLE_COMPONENTS,
+                         fit_inner=lambda C, nonneg=False: inner.error(C, nonneg)[0])
+        if new is None or new.cols[jd.joint].shape[1] > e.cols[jd.joint].shape[1]:
+            return None
+        if new.spec["frequencies_per_arm_rad"] == e.spec["frequencies_per_arm_rad"]:
+            return None
+        new.evidence["backfitted_from_frequencies_per_arm_rad"] = list(e.spec["frequencies_per_arm_rad"])
+        return new
+
+    return _backfit(prep, model, fit, sigma, "motor_position_ripple", redetect)
+
+
 #: how many times one search runs a round again after the Stribeck backfit reshaped the law (:func:`_search`)
 STRIBECK_REDOS = 1
-#: how many times one search runs a round again after the disturbance backfit moved a time-periodic disturbance's
-#: frequency or harmonics right after it accepted a law of the joint's position (:func:`_search`)
+#: how many times one search runs a round again after a backfit moved a time-periodic disturbance's frequency or
+#: harmonics, or a ripple's frequencies, right after it accepted a law of the joint's position (:func:`_search`)
 PERIODIC_REDOS = 1
+#: the periodic findings whose move by a backfit (a new frequency) runs the round of a law of position again
+#: (:data:`PERIODIC_REDOS`): a time-periodic disturbance, and a motor ripple (:func:`backfit_ripple`)
+PERIODIC_REDO_MOVED = ("time_periodic_disturbance", "motor_position_ripple")
 #: the findings whose round :data:`PERIODIC_REDOS` runs again: laws of the joint's position, which on a repeated
 #: motion can take the phase misfit of a time-periodic disturbance placed at a slightly wrong frequency
 PERIODIC_REDO_LAWS = comp.POSITION_LAWS + ("motor_position_ripple",)
@@ -1998,9 +2024,9 @@ def _refit_steps(prep, steps, reshaped, sigma) -> None:
 
 def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
     """Forward search: from the nominal model, add the best significant candidate of each round (competitions,
-    backfits of change times, Stribeck shapes and disturbance frequencies; the round run again once after the first
-    Stribeck reshape, :data:`STRIBECK_REDOS`, and once after the first disturbance moved by a later law of position,
-    :data:`PERIODIC_REDOS`) until none is left.  ``blocked``: (effect, joint) pairs closed from the start (findings set
+    backfits of change times, Stribeck shapes, disturbance and ripple frequencies; the round run again once after the
+    first Stribeck reshape, :data:`STRIBECK_REDOS`, and once after the first disturbance or ripple moved by a later
+    law of position, :data:`PERIODIC_REDOS`) until none is left.  ``blocked``: (effect, joint) pairs closed from the start (findings set
     aside by :func:`finding_to_set_aside`)."""
     model = Model(prep)
     fit0 = model.fit()
@@ -2038,7 +2064,8 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
         changed = set(prep.joints) if (ext.shared or model.shared_exts()) else set(ext.cols)
         reshaped = []
         for effect, backfit in (("abrupt_change", backfit_changes), ("stribeck", backfit_stribeck),
-                                ("time_periodic_disturbance", backfit_periodic)):
+                                ("time_periodic_disturbance", backfit_periodic),
+                                ("motor_position_ripple", backfit_ripple)):
             if ext.effect == effect or not any(e.effect == effect for e in model.exts):
                 continue
             model, fit, moved = backfit(prep, model, fit, sigma)
@@ -2052,10 +2079,10 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
                 reshaped += moved
         stribeck_redo = redone < STRIBECK_REDOS and any(old.effect == "stribeck" for _, old, _ in reshaped)
         periodic_redo = (not stribeck_redo and redone_periodic < PERIODIC_REDOS and ext.effect in PERIODIC_REDO_LAWS
-                         and any(old.effect == "time_periodic_disturbance" for _, old, _ in reshaped))
+                         and any(old.effect in PERIODIC_REDO_MOVED for _, old, _ in reshaped))
         if stribeck_redo or periodic_redo:
             # Stribeck: the round chose this finding against a Stribeck shape that the finding itself has now changed
-            # (the shape bent by what it explains).  Disturbance: the round chose this law of position beside a
+            # (the shape bent by what it explains).  Disturbance (or ripple, whose frequency moves alike): the round chose this law of position beside a
             # disturbance whose frequency the backfit has now moved with the finding in the model, so the finding may
             # only have taken the phase misfit of the old frequency (loop spec 16061: a ripple of 3.3 % held-out gain
             # beside a 0.5 Hz disturbance placed at 0.499873 Hz, 0.3 % once the disturbance is at 0.499977 Hz).
