@@ -878,8 +878,10 @@ def backfit_ripple(prep, model, fit, sigma):
     of the friction, say) biases the scan's peak; a ripple at a slightly wrong frequency leaves a phase misfit that
     drifts over the joint's range, which a position law later takes.  Once later findings are in the model the
     ripple is detected again on its partial residual (:func:`~drake_est.diagnose.detectors.ripple` with the inner
-    split of the model without it) and replaced when that lowers the training residual; the new extension's evidence
-    holds ``backfitted_from_frequencies_per_arm_rad``."""
+    split of the model without it) and replaced when its frequencies differ, it has no more columns than the old one
+    (the training residual is no fair judge of a larger ripple) and the joint's training residual goes down (loop spec
+    17368: a ripple accepted before an abrupt change at 6.654 cycles/rad, the generator's 6.685, whose phase misfit a
+    position load took).  The new extension's evidence holds ``backfitted_from_frequencies_per_arm_rad``."""
     def redetect(model, e, jd, r_p):
         m0 = Model(prep, [x for x in model.exts if x is not e])
         inner = _inner_fits(m0, jd)
@@ -2026,8 +2028,8 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
     """Forward search: from the nominal model, add the best significant candidate of each round (competitions,
     backfits of change times, Stribeck shapes, disturbance and ripple frequencies; the round run again once after the
     first Stribeck reshape, :data:`STRIBECK_REDOS`, and once after the first disturbance or ripple moved by a later
-    law of position, :data:`PERIODIC_REDOS`) until none is left.  ``blocked``: (effect, joint) pairs closed from the start (findings set
-    aside by :func:`finding_to_set_aside`)."""
+    law of position, :data:`PERIODIC_REDOS`) until none is left.  ``blocked``: (effect, joint) pairs closed from the
+    start (findings set aside by :func:`finding_to_set_aside`)."""
     model = Model(prep)
     fit0 = model.fit()
     sigma = {j: float(np.sqrt(fit0.rss_val[j] / max(prep.joints[j].val.sum(), 1))) for j in prep.joints}
@@ -2082,10 +2084,11 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
                          and any(old.effect in PERIODIC_REDO_MOVED for _, old, _ in reshaped))
         if stribeck_redo or periodic_redo:
             # Stribeck: the round chose this finding against a Stribeck shape that the finding itself has now changed
-            # (the shape bent by what it explains).  Disturbance (or ripple, whose frequency moves alike): the round chose this law of position beside a
-            # disturbance whose frequency the backfit has now moved with the finding in the model, so the finding may
-            # only have taken the phase misfit of the old frequency (loop spec 16061: a ripple of 3.3 % held-out gain
-            # beside a 0.5 Hz disturbance placed at 0.499873 Hz, 0.3 % once the disturbance is at 0.499977 Hz).
+            # (the shape bent by what it explains).  Disturbance (or ripple, whose frequency moves alike): the round
+            # chose this law of position beside a disturbance whose frequency the backfit has now moved with the
+            # finding in the model, so the finding may only have taken the phase misfit of the old frequency (loop
+            # spec 16061: a ripple of 3.3 % held-out gain beside a 0.5 Hz disturbance placed at 0.499873 Hz, 0.3 %
+            # once the disturbance is at 0.499977 Hz).
             # Either way run the round again on the reshaped model, whose competition is the one the report gives
             redone += stribeck_redo
             redone_periodic += periodic_redo
