@@ -13,10 +13,12 @@ from drake_est.diagnose.nominal import prepare
 from conftest import closed_loop_case, search_names
 
 
-def _ripple_then_change(k):
-    """(prep, sigma, model, fit, truth) of loop spec ``k`` with the first round's ripple (found on the nominal residual)
-    and then the change point found beside it: the order in which the search accepts them in 17368."""
-    mod, spec, log, truth = closed_loop_case(k)
+@pytest.fixture(scope="module")
+def ripple_then_change_17368():
+    """(prep, sigma, model, fit, truth) of loop spec 17368 with the first round's ripple (found on the nominal residual)
+    and then the change point found beside it: the order in which the search accepts them (the backfit builds new
+    models and leaves these alone, so the tests share them)."""
+    mod, spec, log, truth = closed_loop_case(17368)
     prep = prepare(log, robot="generic")
     m0 = core.Model(prep)
     f0 = m0.fit()
@@ -32,9 +34,9 @@ def _ripple_then_change(k):
     return prep, sigma, m2, m2.fit(sigma), truth
 
 
-def test_backfit_moves_a_ripple_found_before_the_change_to_the_generator_frequency():
+def test_backfit_moves_a_ripple_found_before_the_change_to_the_generator_frequency(ripple_then_change_17368):
     # loop spec 17368: an abrupt change (t = 170.5 s, Coulomb x1.32) and a ripple of 6.685 cycles/rad at 100 Hz
-    prep, sigma, model, fit, truth = _ripple_then_change(17368)
+    prep, sigma, model, fit, truth = ripple_then_change_17368
     f_true = truth["motor_position_ripple"]["frequency_per_arm_rad"]
     old = next(e for e in model.exts if e.effect == "motor_position_ripple")
     f_old = old.spec["frequencies_per_arm_rad"][0]
@@ -52,8 +54,8 @@ def test_backfit_moves_a_ripple_found_before_the_change_to_the_generator_frequen
         assert e.spec["frequencies_per_arm_rad"][0] == pytest.approx(new.spec["frequencies_per_arm_rad"][0], rel=1e-4)
 
 
-def test_backfit_leaves_a_model_without_a_ripple_alone():
-    prep, sigma, model, fit, truth = _ripple_then_change(17368)
+def test_backfit_leaves_a_model_without_a_ripple_alone(ripple_then_change_17368):
+    prep, sigma, model, fit, truth = ripple_then_change_17368
     m = core.Model(prep, [e for e in model.exts if e.effect != "motor_position_ripple"])
     f = m.fit(sigma)
     m2, f2, moved = core.backfit_ripple(prep, m, f, sigma)

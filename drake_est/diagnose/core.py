@@ -906,7 +906,8 @@ PERIODIC_REDOS = 1
 #: (:data:`PERIODIC_REDOS`): a time-periodic disturbance, and a motor ripple (:func:`backfit_ripple`)
 PERIODIC_REDO_MOVED = ("time_periodic_disturbance", "motor_position_ripple")
 #: the findings whose round :data:`PERIODIC_REDOS` runs again: laws of the joint's position, which on a repeated
-#: motion can take the phase misfit of a time-periodic disturbance placed at a slightly wrong frequency
+#: motion can take the phase misfit of a time-periodic disturbance (or, over the joint's range, of a ripple) placed
+#: at a slightly wrong frequency
 PERIODIC_REDO_LAWS = comp.POSITION_LAWS + ("motor_position_ripple",)
 
 
