@@ -10,8 +10,12 @@ forward simulation, no report writing) on logs generated before the clock starts
   (seeds 0..N-1, cycling through five pairs of effects: these need several rounds, the set-aside check and
   the inertia backfit, the slowest diagnoses of the benchmark families).
 
-Wall time and process CPU time (``time.process_time``) are both written: on a machine shared with other
-jobs the CPU time is the meaningful number.  BLAS runs single-threaded inside ``diagnose``.
+Each log is diagnosed twice, on one thread and on ``--threads N`` (default: :func:`~drake_est.diagnose.parallel.
+default_threads`, 2 on a 2-core machine; the candidates of a round at once, :mod:`drake_est.diagnose.parallel`), and
+the two reports must be identical (report.json without its timing).  Wall time and process CPU time
+(``time.process_time``) are both written: one thread's CPU time is the cost, and on a machine shared with other jobs
+the meaningful number; the threaded run's wall time is the time to a report on N cores (the issue's "one log on 2
+cores").  BLAS runs single-threaded inside ``diagnose``.
 
 ``--workers N`` also times each set of logs diagnosed by N worker processes at once (the issue's "ten logs on
 2 cores"): the workers are started and have imported drake_est before the clock starts, the logs are sent to
@@ -48,6 +52,12 @@ def readme_table(out, source="diagnose_speed.json") -> list:
             f"| {out['n_loop_logs']} closed-loop logs (two effects each), 45,000 samples each | "
             f"{out['loop_total_wall_s']:.1f} s | {out['loop_total_cpu_s']:.1f} s | {out['loop_max_cpu_s']:.1f} s | "
             "10 logs < 60 s, one < 10 s |"] if out.get("n_loop_logs") else []) + [
+            f"| the same {n} {what} logs one by one, each on {out['threads']} threads (the same reports) | "
+            f"{out[f'{key}_total_wall_threads_s']:.1f} s | | {out[f'{key}_max_wall_threads_s']:.1f} s wall | "
+            "one < 10 s |"
+            for n, what, key in ((out.get("n_generic_logs"), "generic-axis", "generic"),
+                                 (out.get("n_loop_logs"), "closed-loop", "loop"))
+            if out.get("threads", 1) > 1 and n and out.get(f"{key}_total_wall_threads_s") is not None] + [
             f"| the same {n} {what} logs, {out['pool_workers']} worker processes at once | {out[key]:.1f} s | | | "
             "10 logs < 60 s |"
             for n, what, key in ((out.get("n_generic_logs"), "generic-axis", "generic_pool_wall_s"),
@@ -56,10 +66,18 @@ def readme_table(out, source="diagnose_speed.json") -> list:
 
 
 def _diagnose_one(item):
-    """(name, findings) of one log diagnosed in a worker process."""
+    """(name, findings) of one log diagnosed in a worker process (one thread: the workers take a core each)."""
     from drake_est.diagnose import diagnose
     name, lg, robot = item
-    return name, diagnose(lg, robot=robot, seed=0, simulate=False).effects
+    return name, diagnose(lg, robot=robot, seed=0, simulate=False, threads=1).effects
+
+
+def _report_text(rep) -> str:
+    """report.json of a diagnosis without its timing, as text (the one-thread and threaded runs must agree)."""
+    import json
+    d = rep.to_dict()
+    d.pop("timing_s", None)
+    return json.dumps(d, sort_keys=True, default=str)
 
 
 def _warm(_):
@@ -104,7 +122,11 @@ def main(argv=None):
     ap.add_argument("--json", default=None)
     ap.add_argument("--workers", type=int, default=0,
                     help="also time each set with this many worker processes at once (0: not)")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="threads of the second run of each log (default: the diagnosis' default; 1: no second run)")
     args = ap.parse_args(argv)
+    from drake_est.diagnose.parallel import check_threads, default_threads
+    threads = default_threads() if args.threads is None else check_threads(args.threads, "--threads")
     logs = []
     for s in range(args.n):
         eff = EFFECTS[s % len(EFFECTS)]
@@ -121,11 +143,20 @@ def main(argv=None):
     rows = []
     for name, lg, robot in logs + [("synth irb140 ripple", irb, "irb140")] + loop:
         w0, c0 = time.perf_counter(), time.process_time()
-        rep = diagnose(lg, robot=robot, seed=0, simulate=False)
+        rep = diagnose(lg, robot=robot, seed=0, simulate=False, threads=1)
         wall, cpu = time.perf_counter() - w0, time.process_time() - c0
-        rows.append({"log": name, "samples": int(lg.n_samples), "robot": robot, "wall_s": wall, "cpu_s": cpu,
-                     "findings": rep.effects})
-        print(f"{name:45s} {lg.n_samples} samples: wall {wall:5.1f} s, CPU {cpu:5.1f} s  {rep.effects}", flush=True)
+        row = {"log": name, "samples": int(lg.n_samples), "robot": robot, "wall_s": wall, "cpu_s": cpu,
+               "findings": rep.effects}
+        if threads > 1:
+            w0, c0 = time.perf_counter(), time.process_time()
+            rep_t = diagnose(lg, robot=robot, seed=0, simulate=False, threads=threads)
+            row["wall_threads_s"], row["cpu_threads_s"] = time.perf_counter() - w0, time.process_time() - c0
+            if _report_text(rep_t) != _report_text(rep):
+                raise SystemExit(f"{name}: the report on {threads} threads differs from the one-thread report")
+        rows.append(row)
+        print(f"{name:45s} {lg.n_samples} samples: wall {wall:5.1f} s, CPU {cpu:5.1f} s"
+              + (f"; on {threads} threads wall {row['wall_threads_s']:5.1f} s, CPU {row['cpu_threads_s']:5.1f} s "
+                 "(same report)" if threads > 1 else "") + f"  {rep.effects}", flush=True)
     gen = [r for r in rows if r["robot"] == "generic" and r["log"].startswith("testbench")]
     lp = [r for r in rows if r["log"].startswith("loop")]
     out = {"rows": rows, "n_generic_logs": len(gen),
@@ -136,7 +167,14 @@ def main(argv=None):
            "n_loop_logs": len(lp),
            "loop_total_wall_s": float(sum(r["wall_s"] for r in lp)), "loop_total_cpu_s": float(sum(r["cpu_s"] for r in lp)),
            "loop_max_cpu_s": float(max((r["cpu_s"] for r in lp), default=0.0)),
-           "load_average_1min": os.getloadavg()[0], "cpu_count": os.cpu_count()}
+           "load_average_1min": os.getloadavg()[0], "cpu_count": os.cpu_count(), "threads": threads}
+    if threads > 1:
+        # the second run of each log, on `threads` threads: the same reports (checked above), the time to them
+        for key, sel in (("generic", gen), ("loop", lp)):
+            out[f"{key}_total_wall_threads_s"] = float(sum(r["wall_threads_s"] for r in sel))
+            out[f"{key}_max_wall_threads_s"] = float(max((r["wall_threads_s"] for r in sel), default=0.0))
+        out["irb140_wall_threads_s"] = rows[len(gen)]["wall_threads_s"]
+        out["reports_identical_across_threads"] = True
     if args.workers > 0:
         found = {r["log"]: r["findings"] for r in rows}
         out["pool_workers"] = args.workers
@@ -152,6 +190,12 @@ def main(argv=None):
     if lp:
         print(f"{len(lp)} closed-loop logs of {N_SAMPLES} samples: total wall {out['loop_total_wall_s']:.1f} s, "
               f"CPU {out['loop_total_cpu_s']:.1f} s (slowest {out['loop_max_cpu_s']:.1f} s CPU)")
+    if threads > 1:
+        print(f"on {threads} threads (the same reports): generic logs {out['generic_total_wall_threads_s']:.1f} s "
+              f"wall (slowest {out['generic_max_wall_threads_s']:.1f} s), IRB 140 {out['irb140_wall_threads_s']:.1f} s"
+              + (f", closed-loop logs {out['loop_total_wall_threads_s']:.1f} s (slowest "
+                 f"{out['loop_max_wall_threads_s']:.1f} s); one thread against {threads}, slowest closed-loop log: "
+                 f"{out['loop_max_cpu_s'] / max(out['loop_max_wall_threads_s'], 1e-9):.2f}x" if lp else ""))
     if args.json:
         dump_json(out, args.json)
     return out

@@ -1,4 +1,5 @@
-"""``drake-est diagnose LOG [LOG2 ...] [--robot irb140|generic|PATH.urdf] [--joints 1,2] [--out DIR] [--seed N]``
+"""``drake-est diagnose LOG [LOG2 ...] [--robot irb140|generic|PATH.urdf] [--joints 1,2] [--out DIR] [--seed N]
+[--threads N]``
 
 Model-discrepancy diagnosis of a measured log: the nominal model's held-out residual, the
 effects found (each with its statistical evidence and held-out gain), the extended model, and
@@ -22,6 +23,9 @@ def register(sub):
     p.add_argument("--joints", default=None, help="comma-separated 1-based joints to diagnose (default: all)")
     p.add_argument("--out", default=None, help="output folder (default: a new ./diagnosis-N folder)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--threads", default=None,
+                   help="threads for the candidates of each round (default: DRAKE_EST_DIAG_THREADS, else up to 4, at "
+                        "most the cores); the findings do not depend on it")
     p.add_argument("--no-simulation", action="store_true", help="skip the windowed forward simulations")
     p.add_argument("--drop-invalid", action="store_true", help="drop rows with NaN/inf (counted) instead of failing")
     p.set_defaults(func=run)
@@ -55,6 +59,8 @@ def run(args) -> int:
     from drake_est.diagnose import diagnose
 
     joints = _joints(args.joints)
+    from drake_est.diagnose.parallel import check_threads
+    threads = None if args.threads is None else check_threads(args.threads, "--threads")
     out = _new_dir(args.out)
     from drake_est.cli._common import load_log_checked
 
@@ -79,7 +85,7 @@ def run(args) -> int:
         from drake_est.diagnose import concatenate_logs
         log = concatenate_logs(logs)
     rep = diagnose(log, robot=args.robot, joints=joints, seed=args.seed, simulate=not args.no_simulation,
-                   source=" + ".join(str(p) for p in paths))
+                   source=" + ".join(str(p) for p in paths), threads=threads)
     rep.write(out)
     print(rep.summary())
     print(f"report: {out / 'report.md'} (numbers in {out / 'report.json'})")

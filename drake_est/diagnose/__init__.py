@@ -30,7 +30,8 @@ __all__ = ["diagnose", "diagnose_logs", "concatenate_logs", "DiagnosisReport", "
 
 
 def diagnose(log, robot: str | None = "generic", joints=None, seed: int = 0, simulate: bool = True,
-             alpha: float = ALPHA, min_gain: float = MIN_GAIN, source: str | None = None) -> DiagnosisReport:
+             alpha: float = ALPHA, min_gain: float = MIN_GAIN, source: str | None = None,
+             threads: int | None = None) -> DiagnosisReport:
     """Diagnose a measured log (a :class:`~drake_est.data.Log` or a path to a CSV/NPZ log).
 
     Parameters
@@ -41,8 +42,13 @@ def diagnose(log, robot: str | None = "generic", joints=None, seed: int = 0, sim
     simulate : also run the windowed forward simulations (simulation error, Sec. 3.1).
     alpha, min_gain : significance level of the held-out F-test and the minimum relative held-out
         RMSE reduction for a finding.
+    threads : threads for the candidates of each round (default: ``DRAKE_EST_DIAG_THREADS``, else up to 4, at most
+        the cores; :mod:`drake_est.diagnose.parallel`).  The findings and every number do not depend on it.
     """
     from drake_est.data import Log, load_log
+    from drake_est.diagnose.parallel import check_threads
+    if threads is not None:
+        threads = check_threads(threads)
     if not isinstance(log, Log):
         source = source or str(log)
         log = load_log(log)
@@ -51,7 +57,8 @@ def diagnose(log, robot: str | None = "generic", joints=None, seed: int = 0, sim
     # the least-squares problems are small (thousands x tens): one BLAS thread is fastest, and much faster
     # than contended threads on a loaded machine (measured 0.53 s vs 0.025 s per 4291 x 70 lstsq, load 10)
     with single_thread_blas():
-        res = run_diagnosis(log, robot=robot, joints=joints, seed=seed, alpha=alpha, min_gain=min_gain)
+        res = run_diagnosis(log, robot=robot, joints=joints, seed=seed, alpha=alpha, min_gain=min_gain,
+                            threads=threads)
     rep = DiagnosisReport(res, source=source or str(log.meta.get("file", "<log>")), robot=robot)
     if simulate:
         import time

@@ -56,6 +56,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.stats
 
+from drake_est.diagnose.parallel import pmap
+
 
 def ambiguous_rivals(competition) -> list:
     """The rivals an ambiguous finding is not separated from: ``ambiguous_with`` (best first), else the runner-up."""
@@ -625,8 +627,9 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, wit
     best, _ = _fit_rss(X, jd.y, jd.train, jd.val, n0, solve)
     cols = []
     while blocks:
-        trial = {k: _fit_rss(np.hstack([X] + cols + [B]), jd.y, jd.train, jd.val, n0, solve)[0]
-                 for k, B in blocks.items()}
+        # the blocks' trials at once (parallel.pmap), in the blocks' order
+        trial = dict(zip(blocks, pmap(lambda B: _fit_rss(np.hstack([X] + cols + [B]), jd.y, jd.train, jd.val, n0,
+                                                         solve)[0], list(blocks.values()))))
         k = min(trial, key=trial.get)
         if not trial[k] < best:
             break

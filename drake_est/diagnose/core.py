@@ -26,6 +26,7 @@ import drake_est.diagnose.competition as comp
 import drake_est.diagnose.detectors as det
 from drake_est.diagnose.quantization import torque_step  # noqa: F401  (re-exported)
 from drake_est.diagnose.multilog import energy_fn, log_ids, per_log_offsets
+from drake_est.diagnose.parallel import diagnosis_threads, pmap
 from drake_est.diagnose.nominal import (block_index, joint_tau_step, nominal_columns, nominal_names, prepare,
                                         screen_outliers)
 from drake_est.metrics import metrics_table
@@ -347,6 +348,8 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             out += [e for e in cache[j] if (e.effect, j) not in accepted]
             continue
         start = len(out)
+        calls = []      # the detectors, run at once (parallel.pmap) in this order
+        longest = None
         r = _residual(prep, fit, j)
         X = model.design_with_shared(j)
         inner = _inner_fits(model, jd, X)
@@ -365,33 +368,35 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             return (effect, j) in accepted
 
         if not have("asymmetric_coulomb"):
-            out.append(det.asymmetric(jd, r))
+            calls.append(lambda: det.asymmetric(jd, r))
         if not have("position_dependent_friction"):
-            out.append(det.position_bfe(jd, r, None, fit_inner))
+            calls.append(lambda: det.position_bfe(jd, r, None, fit_inner))
         if prep.robot is None and not have("position_dependent_load"):
-            out.append(det.position_load(jd, r, fit_inner))
+            calls.append(lambda: det.position_load(jd, r, fit_inner))
         if not have("motor_position_ripple"):
-            out.append(det.ripple(jd, r, n_components=RIPPLE_COMPONENTS, fit_inner=fit_inner))
+            longest = len(calls)        # the ripple's scan: the longest detector, started first
+            calls.append(lambda: det.ripple(jd, r, n_components=RIPPLE_COMPONENTS, fit_inner=fit_inner))
         if not have("energy_dependent_friction"):
             cj = fit.coef[j]
             names = nominal_names(prep.robot_kind)
             kv, kc = cj[names.index("kv")], cj[names.index("kc")]
             F_full = kv * jd.v + kc * np.sign(jd.v)
-            out.append(det.energy(jd, r, F_full, fit_train, energy_fn=energy_fn(prep)))
+            calls.append(lambda: det.energy(jd, r, F_full, fit_train, energy_fn=energy_fn(prep)))
         if not have("abrupt_change"):
             ecols = _energy_cols(model, j)
-            out.append(det.change_point(jd, r, smooth_alternative=ecols is not None, energy_cols=ecols))
+            calls.append(lambda: det.change_point(jd, r, smooth_alternative=ecols is not None, energy_cols=ecols))
         if not have("stribeck"):
-            out.append(det.stribeck(jd, r, fit_inner, falling=j in fit.kv_held))
+            calls.append(lambda: det.stribeck(jd, r, fit_inner, falling=j in fit.kv_held))
         if not have("time_periodic_disturbance"):
-            out.append(det.time_periodic(jd, r))
+            calls.append(lambda: det.time_periodic(jd, r))
             # the whole scan's peak where it lies at a line of the motion (a slow disturbance under point-to-point
             # moves), on the joints where the nominal residual shows one (motion_line_gate): held against a free
             # function of the state in _round
             if j in prep.meta.get("motion_line_joints", ()):
-                out.append(at_line_refined(det.time_periodic_at_motion_line(jd, r), jd, r, X))
+                calls.append(lambda: at_line_refined(det.time_periodic_at_motion_line(jd, r), jd, r, X))
         if not have("gear_coupling") and len(prep.joints) > 1:
-            out.append(det.coupling(jd, r, prep))
+            calls.append(lambda: det.coupling(jd, r, prep))
+        out += pmap(lambda f: f(), calls, first=[longest] if longest is not None else ())
         if cache is not None:
             cache[j] = [e for e in out[start:] if e is not None]
     if prep.robot is not None and ("payload", None) not in accepted:
@@ -1083,8 +1088,8 @@ def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, chang
     """One round of candidates on ``model``'s residual: [(ext, test, fit1, model1)], each test with
     ``significant`` (:func:`_evaluate`)."""
     state = {}
-    return [_evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state)
-            for ext in _candidates(prep, model, fit, accepted, cache, changed)]
+    return pmap(lambda ext: _evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state),
+                _candidates(prep, model, fit, accepted, cache, changed))
 
 
 def _evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state) -> tuple:
@@ -2066,12 +2071,20 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
         accepted.add((ext.effect, None if ext.shared else ext.joint))
         changed = set(prep.joints) if (ext.shared or model.shared_exts()) else set(ext.cols)
         reshaped = []
-        for effect, backfit in (("abrupt_change", backfit_changes), ("stribeck", backfit_stribeck),
-                                ("time_periodic_disturbance", backfit_periodic),
-                                ("motor_position_ripple", backfit_ripple)):
-            if ext.effect == effect or not any(e.effect == effect for e in model.exts):
-                continue
-            model, fit, moved = backfit(prep, model, fit, sigma)
+        backfits = [(effect, backfit) for effect, backfit in (
+            ("abrupt_change", backfit_changes), ("stribeck", backfit_stribeck),
+            ("time_periodic_disturbance", backfit_periodic), ("motor_position_ripple", backfit_ripple))
+            if ext.effect != effect and any(e.effect == effect for e in model.exts)]
+        # the backfits at once on the model as it stands (parallel.pmap): each one's result holds while those before
+        # it moved nothing (the same model), and is computed again on the moved model otherwise
+        accepted_model = model
+        ahead = (pmap(lambda b: b[1](prep, model, fit, sigma), backfits) if len(backfits) > 1
+                 else [None] * len(backfits))
+        for (effect, backfit), early in zip(backfits, ahead):
+            if early is not None and model is accepted_model:
+                model, fit, moved = early
+            else:
+                model, fit, moved = backfit(prep, model, fit, sigma)
             for j, old_ext, new_ext in moved:
                 for st in steps:
                     if st.ext is old_ext:
@@ -2107,12 +2120,23 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
 
 
 def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings: int = MAX_FINDINGS,
-                  alpha: float = ALPHA, min_gain: float = MIN_GAIN) -> DiagnosisResult:
+                  alpha: float = ALPHA, min_gain: float = MIN_GAIN, threads: int | None = None) -> DiagnosisResult:
     """Prepare the data, fit the nominal model, and extend it while held-out tests say so.
 
     Outliers are screened on the nominal residual first (:func:`prepare`); a large unmodeled effect
     can hide them there, so after the search the final residual is screened again (6 MAD) and, when
-    it flags new samples, they are excluded and the search is repeated once."""
+    it flags new samples, they are excluded and the search is repeated once.
+
+    ``threads``: the candidates of a round (and a detector's trial shapes) are computed on this many threads
+    (:mod:`drake_est.diagnose.parallel`; None: its default); the result does not depend on it."""
+    with diagnosis_threads(threads) as n:
+        res = _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain)
+    res.timing["threads"] = n
+    return res
+
+
+def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> DiagnosisResult:
+    """:func:`run_diagnosis` on the threads it set up."""
     t0 = time.perf_counter()
     prep = prepare(log, robot=robot, joints=joints, seed=seed)
     prep.meta["motion_line_joints"] = motion_line_gate(prep, alpha, min_gain)

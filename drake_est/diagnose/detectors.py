@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from drake_est.diagnose.parallel import pmap
 from drake_est.effects import EFFECTS, EXTRA_EFFECTS  # noqa: F401
 # the column evaluators are friction terms now (one friction model); re-exported under their old names
 from drake_est.identification.friction.extensions import (columns_at, gaussian_features,  # noqa: F401
@@ -503,14 +504,16 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
     if grid.size == 0:
         return None
     best = None
-    for delta in STRIBECK_DELTAS:
-        for vs in grid:
-            C = stribeck_columns(v, {"vs": vs, "delta": delta}, _sgn)
-            if np.mean(np.abs(v[jd.train]) < 2 * vs) < STRIBECK_MIN_LOW:
-                continue
-            err = fit_inner(C, nonneg=True)      # ks >= 0: a friction excess at standstill (Model.nonneg)
-            if best is None or err < best[0]:
-                best = (err, vs, delta, C)
+    av = np.abs(v[jd.train])
+    shapes = [(vs, delta) for delta in STRIBECK_DELTAS for vs in grid if np.mean(av < 2 * vs) >= STRIBECK_MIN_LOW]
+
+    def trial(shape):
+        """Inner-split error and columns of one (vs, delta); ks >= 0: a friction excess at standstill."""
+        C = stribeck_columns(v, {"vs": shape[0], "delta": shape[1]}, _sgn)
+        return fit_inner(C, nonneg=True), C
+    for (vs, delta), (err, C) in zip(shapes, pmap(trial, shapes)):      # the grid's trials at once, chosen in order
+        if best is None or err < best[0]:
+            best = (err, vs, delta, C)
     if best is None:
         return None
     err0, vs, delta, C = best
@@ -546,14 +549,16 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
     # the slowest kernel reaches the 95 % speed itself, as the parametric grid does.
     q95 = float(np.quantile(np.abs(v[jd.train]), 0.95))
     tops = (("exp", q95), ("gauss", q95)) if falling else (("exp", q95 / 3.0), ("gauss", q95 / np.sqrt(3.0)))
-    for kernel, top in tops:
-        for K in STRIBECK_BASIS_SIZES:
-            sp = np.geomspace(grid[0], max(top, grid[-1]), K)
-            bspec = {"basis_speeds": sp, "basis_kernel": kernel}
-            Cb = stribeck_columns(v, bspec, _sgn)
-            e = fit_inner(Cb, nonneg=True)
-            if e < err_p and (basis is None or e < basis[0]):
-                basis = (e, sp, Cb, kernel)
+    bases = [(kernel, np.geomspace(grid[0], max(top, grid[-1]), K)) for kernel, top in tops
+             for K in STRIBECK_BASIS_SIZES]
+
+    def basis_trial(b):
+        """Inner-split error and columns of one basis (kernel, speeds)."""
+        Cb = stribeck_columns(v, {"basis_speeds": b[1], "basis_kernel": b[0]}, _sgn)
+        return fit_inner(Cb, nonneg=True), Cb
+    for (kernel, sp), (e, Cb) in zip(bases, pmap(basis_trial, bases)):
+        if e < err_p and (basis is None or e < basis[0]):
+            basis = (e, sp, Cb, kernel)
     if basis is not None:
         _, sp, Cb, kernel = basis
         spec = {"effect": "stribeck", "basis_speeds": [float(x) for x in sp], "basis_kernel": kernel}

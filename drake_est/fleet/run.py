@@ -249,8 +249,9 @@ def _diagnose(entry, settings) -> dict:
 
 # ----------------------------------------------------------------------------- orchestration
 def worker_env() -> dict:
-    """Environment of worker processes: single-threaded BLAS (many small solves per log)."""
-    return {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    """Environment of worker processes: single-threaded BLAS (many small solves per log) and one thread per
+    diagnosis (:mod:`drake_est.diagnose.parallel`): the workers already take one core each."""
+    return {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "DRAKE_EST_DIAG_THREADS")}
 
 
 def local_cluster(workers: int | None = None):
