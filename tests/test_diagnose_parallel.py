@@ -98,11 +98,11 @@ def test_one_thread_and_two_give_the_same_report(monkeypatch):
     ahead = []
     orig = core.pmap
 
-    def spy(fn, items):
+    def spy(fn, items, **kw):
         items = list(items)
         if items and all(isinstance(b, tuple) and getattr(b[1], "__name__", "").startswith("backfit_") for b in items):
             ahead.append([b[0] for b in items])
-        return orig(fn, items)
+        return orig(fn, items, **kw)
 
     monkeypatch.setattr(core, "pmap", spy)
     two = diagnose(lg, robot="generic", seed=0, simulate=False, threads=2)
