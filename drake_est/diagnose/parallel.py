@@ -55,8 +55,12 @@ def diagnosis_threads(threads: int | None = None):
     """Run the enclosed work with a pool of ``threads`` threads for :func:`pmap` (None: :func:`default_threads`;
     1: no pool).  Yields the number of threads used."""
     n = default_threads() if threads is None else check_threads(threads)
-    if n <= 1 or _POOL.get() is not None:
-        yield 1 if _POOL.get() is None else _POOL.get()[1]
+    outer = _POOL.get()
+    if outer is not None:           # inside another block: its pool serves
+        yield outer[1]
+        return
+    if n <= 1:
+        yield 1
         return
     pool = ThreadPoolExecutor(max_workers=n, thread_name_prefix="drake_est_diagnosis")
     token = _POOL.set((pool, n))
@@ -79,7 +83,8 @@ def pmap(fn, items, first=()) -> list:
         return [fn(x) for x in items]
     lead = [i for i in dict.fromkeys(first) if 0 <= i < len(items)]
     if lead:
-        order = lead + [i for i in range(len(items)) if i not in set(lead)]
+        led = set(lead)
+        order = lead + [i for i in range(len(items)) if i not in led]
         done = pmap(fn, [items[i] for i in order])
         out = [None] * len(items)
         for i, r in zip(order, done):
