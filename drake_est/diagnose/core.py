@@ -2078,8 +2078,13 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
         # the backfits at once on the model as it stands (parallel.pmap): each one's result holds while those before
         # it moved nothing (the same model), and is computed again on the moved model otherwise
         accepted_model = model
-        ahead = (pmap(lambda b: b[1](prep, model, fit, sigma), backfits) if len(backfits) > 1
-                 else [None] * len(backfits))
+
+        def run_ahead(b, model=model, fit=fit):
+            try:
+                return b[1](prep, model, fit, sigma)
+            except Exception:       # computed again in order below, and raised there if it must be
+                return None
+        ahead = pmap(run_ahead, backfits) if len(backfits) > 1 else [None] * len(backfits)
         for (effect, backfit), early in zip(backfits, ahead):
             if early is not None and model is accepted_model:
                 model, fit, moved = early
