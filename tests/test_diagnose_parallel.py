@@ -1,12 +1,12 @@
 """Threads of one diagnosis (drake_est.diagnose.parallel): the same report on one thread and on two."""
 from __future__ import annotations
 
-import json
 import threading
 
 import numpy as np
 import pytest
 
+from conftest import bench_module
 from drake_est.cli import main
 from drake_est.diagnose import core, diagnose
 from drake_est.diagnose.parallel import THREADS_ENV, check_threads, default_threads, diagnosis_threads, pmap
@@ -81,12 +81,6 @@ def test_the_environment_variable_sets_the_default(monkeypatch):
         default_threads()
 
 
-def _report_text(rep) -> str:
-    d = rep.to_dict()
-    d.pop("timing_s", None)
-    return json.dumps(d, sort_keys=True, default=str)
-
-
 def test_one_thread_and_two_give_the_same_report(monkeypatch):
     """A closed-loop log with an abrupt change, a ripple and Stribeck: three findings, so the backfits of two of them
     run at once on the model as accepted (core._search) as well as the candidates of every round; the report, every
@@ -94,6 +88,8 @@ def test_one_thread_and_two_give_the_same_report(monkeypatch):
     from drake_est.diagnose.testbench_loop import generate
     lg, _ = generate({"abrupt_change": 1.0, "motor_position_ripple": 1.0, "stribeck": 1.0}, seed=3, duration=150.0,
                      sample_rate=100.0)
+    with pytest.raises(DataError, match="threads must be at least 1"):
+        diagnose(lg, robot="generic", seed=0, simulate=False, threads=0)
     one = diagnose(lg, robot="generic", seed=0, simulate=False, threads=1)
     ahead = []
     orig = core.pmap
@@ -109,7 +105,8 @@ def test_one_thread_and_two_give_the_same_report(monkeypatch):
     assert sorted(one.effects) == ["abrupt_change", "motor_position_ripple", "stribeck"]
     assert ahead and all(len(a) >= 2 for a in ahead), ahead      # the backfits were run ahead, at once
     assert two.result.timing["threads"] == 2 and one.result.timing["threads"] == 1
-    assert _report_text(two) == _report_text(one)
+    report_text = bench_module("bench_diagnose_speed")._report_text       # the speed benchmark's comparison
+    assert report_text(two) == report_text(one)
 
 
 def test_cli_refuses_a_bad_thread_count(tmp_path, capsys):

@@ -46,9 +46,6 @@ def diagnose(log, robot: str | None = "generic", joints=None, seed: int = 0, sim
         the cores; :mod:`drake_est.diagnose.parallel`).  The findings and every number do not depend on it.
     """
     from drake_est.data import Log, load_log
-    from drake_est.diagnose.parallel import check_threads
-    if threads is not None:
-        threads = check_threads(threads)
     if not isinstance(log, Log):
         source = source or str(log)
         log = load_log(log)

@@ -547,7 +547,7 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
     # nonnegative mixtures hold the Lorentzian ks / (1 + (qd/vs)^2) that exponentials cannot follow near zero)
     # When the friction falls over the whole selected range (``falling``) the data hold only the hump's flank and
     # the slowest kernel reaches the 95 % speed itself, as the parametric grid does.
-    q95 = float(np.quantile(np.abs(v[jd.train]), 0.95))
+    q95 = float(np.quantile(av, 0.95))
     tops = (("exp", q95), ("gauss", q95)) if falling else (("exp", q95 / 3.0), ("gauss", q95 / np.sqrt(3.0)))
     bases = [(kernel, np.geomspace(grid[0], max(top, grid[-1]), K)) for kernel, top in tops
              for K in STRIBECK_BASIS_SIZES]
