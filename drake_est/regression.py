@@ -102,16 +102,49 @@ def _weights(A, lam, penalize, column_scaled):
     return np.sqrt(lam) * d
 
 
-def ridge_solve(A, y, lam: float = 0.0, penalize=None, column_scaled: bool = False) -> np.ndarray:
+#: :func:`ridge_solve` with ``normal_equations=True`` uses the Cholesky factor of the column-scaled normal
+#: equations while its diagonal ratio is above this (condition number of the scaled matrix below ~1e10)
+NORMAL_MIN_DIAG_RATIO = 1e-5
+
+
+def _normal_solve(A, y, w):
+    """(A^T A + diag(w^2)) k = A^T y by the Cholesky factor of the column-scaled matrix; None when that factor's
+    diagonal ratio is below :data:`NORMAL_MIN_DIAG_RATIO` (then least squares on the rows is accurate where the
+    squared condition number of the normal equations would not be)."""
+    G = A.T @ A
+    G[np.diag_indices_from(G)] += w * w
+    d = np.sqrt(np.diag(G))
+    d[d <= 0] = 1.0
+    try:
+        L = np.linalg.cholesky(G / d[:, None] / d[None, :])
+    except np.linalg.LinAlgError:
+        return None
+    dl = np.abs(np.diag(L))
+    if not dl.min() >= NORMAL_MIN_DIAG_RATIO * dl.max():
+        return None
+    g = A.T @ y
+    dd = d if g.ndim == 1 else d[:, None]
+    return scipy.linalg.cho_solve((L, True), g / dd) / dd
+
+
+def ridge_solve(A, y, lam: float = 0.0, penalize=None, column_scaled: bool = False,
+                normal_equations: bool = False) -> np.ndarray:
     """Coefficients of Eq. (6.8) by augmented least squares [A; sqrt(lam) D] k = [y; 0] (SVD, gelsd).
 
     Only the penalized rows are appended (rows of D that are zero change nothing).  Fast path of
-    :func:`ridge_fit` without the degrees of freedom; ``column_scaled`` see the module docstring."""
+    :func:`ridge_fit` without the degrees of freedom; ``column_scaled`` see the module docstring.
+    ``normal_equations``: solve (A^T A + lam D^2) k = A^T y by the Cholesky factor of the column-scaled matrix
+    (several times faster for tall A), falling back to the SVD when that factor is ill-conditioned
+    (:data:`NORMAL_MIN_DIAG_RATIO`); the diagnosis fits thousands of tall systems."""
     A = np.asarray(A, dtype=float)
     y = np.asarray(y, dtype=float)
     if check_lam(lam) == 0:
         return np.linalg.lstsq(A, y, rcond=None)[0]
     w = _weights(A, lam, penalize, column_scaled)
+    if normal_equations and np.all(np.isfinite(A)) and np.all(np.isfinite(y)):
+        k = _normal_solve(A, y, w)
+        if k is not None:
+            return k
     idx = np.flatnonzero(w)
     if idx.size == 0:
         return np.linalg.lstsq(A, y, rcond=None)[0]

@@ -113,6 +113,23 @@ def test_column_scaled_solve_matches_old_diagnosis_ridge(data):
                                _old_ridge_lstsq(A, y, np.zeros(A.shape[1], bool)), rtol=1e-8, atol=1e-10)
 
 
+def test_normal_equation_solve_matches_svd_and_falls_back(data):
+    """ridge_solve(normal_equations=True): the Cholesky path equals the SVD (gelsd) path on a well-posed system,
+    for one and for several right-hand sides; with two identical unpenalized columns the scaled factor is singular
+    and the SVD's minimum-norm answer comes back (the normal equations would not give it)."""
+    A, y, pen = data
+    for yy in (y, np.column_stack([y, 2 * y + 1])):
+        np.testing.assert_allclose(reg.ridge_solve(A, yy, 1e-4, pen, column_scaled=True, normal_equations=True),
+                                   reg.ridge_solve(A, yy, 1e-4, pen, column_scaled=True), rtol=1e-7, atol=1e-9)
+    assert reg._normal_solve(A, y, reg._weights(A, 1e-4, pen, True)) is not None
+    Ad = np.column_stack([A[:, :1], A])                 # column 0 twice, both unpenalized
+    pd = np.concatenate([[0.0], pen])
+    assert reg._normal_solve(Ad, y, reg._weights(Ad, 1e-4, pd, True)) is None
+    k = reg.ridge_solve(Ad, y, 1e-4, pd, column_scaled=True, normal_equations=True)
+    np.testing.assert_array_equal(k, reg.ridge_solve(Ad, y, 1e-4, pd, column_scaled=True))
+    assert k[0] == pytest.approx(k[1], rel=1e-6)        # the minimum-norm split of the shared coefficient
+
+
 def test_svd_ridge_and_cv_match_old(data):
     A, y, pen = data
     for lam in (0.0, 1e-3, 10.0):

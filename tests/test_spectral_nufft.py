@@ -190,6 +190,32 @@ def test_scan_plan_reuses_gram_for_many_signals(data, fit_mean, method):
         plan.ess(np.ones(3))
 
 
+def test_factored_gram_blocks_equal_dense_solves(data):
+    """LSScanPlan factors its Gram blocks once (gram_factor); each scan is then a forward substitution equal to
+    explained_ss's dense solves.  A block that is not positive definite leaves no factor, and the plan solves."""
+    from drake_est.spectral.lssa import LSScanPlan
+    from drake_est.spectral.nufft import explained_ss, explained_ss_factored, gram_factor
+
+    x, y, v = data
+    Phi = _phi(v, 4, True)
+    f = 0.03 + 0.007 * np.arange(800)
+    plan = LSScanPlan(x, f, Phi, method="nufft")
+    assert plan.L is not None and plan.L.shape == (f.size, 8, 8)
+    rng = np.random.default_rng(11)
+    b = rng.standard_normal((f.size, 8))
+    assert _rel(explained_ss_factored(plan.L, b), explained_ss(plan.G, b, plan.jitter)) < 1e-9
+    L = plan.L
+    plan.L = None
+    dense = plan.ess(y)
+    plan.L = L
+    assert _rel(plan.ess(y), dense) < 1e-9
+    G = plan.G.copy()
+    G[5] = -G[5]
+    assert gram_factor(G) is None
+    assert gram_factor(G[:, :2, :2]) is None                 # d = 2: explained_ss' closed form
+    assert LSScanPlan(x, f, Phi, method="nufft", fit_mean=True).L is None
+
+
 def test_periodic_components_with_kept_plans_equal_fresh_ones(data):
     """find_periodic_components(scan_plans=...): the kept plan is reused for another residual at the same
     positions, a new plan made for other positions, at most MAX_SCAN_PLANS kept; results unchanged."""

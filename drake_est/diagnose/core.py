@@ -77,7 +77,7 @@ def _ridge_lstsq(A, y, penalize):
         mask = np.arange(p) >= penalize
     else:
         mask = np.asarray(penalize, bool)
-    return ridge_solve(A, y, RIDGE, mask.astype(float), column_scaled=True)
+    return ridge_solve(A, y, RIDGE, mask.astype(float), column_scaled=True, normal_equations=True)
 
 
 def solve_kv_nonneg(solve, A, y, kv_cols=(0,)):

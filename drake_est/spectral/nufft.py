@@ -157,6 +157,33 @@ def gram_blocks(M0: np.ndarray, Mc: np.ndarray, Ms: np.ndarray) -> np.ndarray:
     return G
 
 
+def gram_factor(G: np.ndarray, jitter: float = 1e-10):
+    """Lower Cholesky factors (O, d, d) of the jittered Gram blocks that :func:`explained_ss` solves (the same
+    ``jitter * trace(G)/d`` ridge), for :func:`explained_ss_factored`; None when some block is not positive
+    definite in floating point (then :func:`explained_ss` solves each call) or for d = 2 (closed form)."""
+    d = G.shape[-1]
+    if d == 2:
+        return None
+    scale = np.trace(G, axis1=1, axis2=2) / d
+    Gj = G + (jitter * np.maximum(scale, 1e-300))[:, None, None] * np.eye(d)[None]
+    try:
+        L = np.linalg.cholesky(Gj)
+    except np.linalg.LinAlgError:
+        return None
+    return L if np.all(np.isfinite(L)) else None
+
+
+def explained_ss_factored(L: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``b^T G^-1 b = ||L^-1 b||^2`` per frequency from the factors of :func:`gram_factor`: one forward
+    substitution, vectorized over the frequencies (a periodogram scans residual after residual with the
+    same Gram blocks, :class:`~drake_est.spectral.lssa.LSScanPlan`)."""
+    d = L.shape[-1]
+    z = np.empty(b.shape)
+    for i in range(d):
+        z[:, i] = (b[:, i] - np.einsum("oj,oj->o", L[:, i, :i], z[:, :i])) / L[:, i, i]
+    return np.einsum("oi,oi->o", z, z)
+
+
 def explained_ss(G: np.ndarray, b: np.ndarray, jitter: float = 1e-10) -> np.ndarray:
     """Batched explained sum of squares ``b^T G^-1 b`` (least-squares fit per frequency, Eq. (10.5)
     for one frequency), with a ``jitter * trace(G)/dim`` diagonal ridge for numerical safety."""
