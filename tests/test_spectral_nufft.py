@@ -87,8 +87,24 @@ def test_auto_switch_and_fft_scan_exact(data):
     _, binned = fft_scan(x, y, Phi, f_max=12.0, f_min=0.05, method="binned")
     assert _rel(binned, ess) > 1e-6
     one = _SingleFrequencyESS(x, y, Phi)
+    assert one.PP is not None
     for k in (3, 200):
         assert abs(one(fr[k]) - ess[k]) < 1e-9 * ess[k]
+
+
+def test_single_frequency_ess_streams_long_logs(data, monkeypatch):
+    """Above SINGLE_ESS_MAX_ELEMS the basis pairs are streamed (no pair-product matrix), with the same sums."""
+    import drake_est.spectral.detect as det
+
+    x, y, v = data
+    Phi = _phi(v, 4, True)
+    kept = det._SingleFrequencyESS(x, y, Phi)
+    monkeypatch.setattr(det, "SINGLE_ESS_MAX_ELEMS", 10)
+    streamed = det._SingleFrequencyESS(x, y, Phi)
+    assert streamed.PP is None and kept.live.size < kept.m0.size      # the sign split's disjoint pairs are skipped
+    for f in (0.11, 3.3, 7.77):
+        assert abs(streamed(f) - kept(f)) <= 1e-12 * kept(f)
+        assert abs(kept(f) - ls_scan(x, y, [f], Phi, method="direct")[0]) < 1e-9 * kept(f)
 
 
 def test_trig_sums_uniform_shift_and_type3():

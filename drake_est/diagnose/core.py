@@ -154,8 +154,10 @@ class InnerFits:
 
     def coef(self, C, nonneg=False):
         """Coefficients of ``[X, C]`` on the fitted rows (``nonneg``: C's coefficients kept >= 0 too)."""
-        Ca = C[self.fit_rows]
-        p, k = self.p, C.shape[1]
+        return self._coef(C[self.fit_rows], nonneg)
+
+    def _coef(self, Ca, nonneg=False):
+        p, k = self.p, Ca.shape[1]
         G = np.empty((p + k, p + k))
         G[:p, :p] = self.Gxx
         G[p:, :p] = Ca.T @ self.Xa
@@ -179,9 +181,10 @@ class InnerFits:
 
     def error(self, C, nonneg=False):
         """Sum of squared errors of ``[X, C]`` on the error rows."""
-        c = self.coef(C, nonneg)
+        Ca = C[self.fit_rows]
+        c = self._coef(Ca, nonneg)
         if self.err_rows is None:
-            e = self.ya - self.Xa @ c[:self.p] - C[self.fit_rows] @ c[self.p:]
+            e = self.ya - self.Xa @ c[:self.p] - Ca @ c[self.p:]
         else:
             e = self.yb - self.Xb @ c[:self.p] - C[self.err_rows] @ c[self.p:]
         return float(e @ e), c

@@ -224,10 +224,15 @@ class PeriodicComponents:
         return out
 
 
+#: :class:`_SingleFrequencyESS` keeps the basis pairs' products as one matrix up to this many numbers (64 MB)
+SINGLE_ESS_MAX_ELEMS = 8_000_000
+
+
 class _SingleFrequencyESS:
     """Explained sum of squares of ``r`` by the 2J LPV regressors of one frequency (Eq. (10.5) for one
-    frequency), by direct sums over the samples: what the off-grid refinement maximizes.  Streams over
-    the basis pairs, so memory stays O(N) for long logs."""
+    frequency), by direct sums over the samples: what the off-grid refinement maximizes.  The products of the
+    basis pairs are kept as one matrix while it holds at most :data:`SINGLE_ESS_MAX_ELEMS` numbers (each call is
+    then two matrix products); for longer logs the pairs are streamed, so memory stays O(N)."""
 
     def __init__(self, x, r, Phi, jitter: float = 1e-10):
         self.xs = x - 0.5 * (float(np.min(x)) + float(np.max(x)))     # shift invariant, better rounded
@@ -237,6 +242,11 @@ class _SingleFrequencyESS:
         self.iu = np.triu_indices(J)
         self.m0 = np.array([Phi[:, i] @ Phi[:, j] for i, j in zip(*self.iu)])
         self.jitter = jitter
+        # the pairs with overlapping support (disjoint ones of a sign split have no cross terms)
+        self.live = np.flatnonzero((self.m0 != 0.0) | (self.iu[0] == self.iu[1]))
+        self.PP = None
+        if self.live.size * x.size <= SINGLE_ESS_MAX_ELEMS:
+            self.PP = np.stack([Phi[:, self.iu[0][k]] * Phi[:, self.iu[1][k]] for k in self.live])
 
     def __call__(self, f: float) -> float:
         from drake_est.spectral.nufft import explained_ss, gram_blocks, sym_blocks
@@ -247,14 +257,15 @@ class _SingleFrequencyESS:
         c2 = c * c - s * s
         s2 = 2.0 * c * s
         J = self.Phi.shape[1]
-        mc = np.empty(self.m0.size)
-        ms = np.empty(self.m0.size)
-        for k, (i, j) in enumerate(zip(*self.iu)):
-            if self.m0[k] == 0.0 and i != j:          # disjoint supports (sign split)
-                mc[k] = ms[k] = 0.0
-                continue
-            w = self.Phi[:, i] * self.Phi[:, j]
-            mc[k], ms[k] = w @ c2, w @ s2
+        mc = np.zeros(self.m0.size)
+        ms = np.zeros(self.m0.size)
+        if self.PP is not None:
+            mc[self.live] = self.PP @ c2
+            ms[self.live] = self.PP @ s2
+        else:
+            for k in self.live:
+                w = self.Phi[:, self.iu[0][k]] * self.Phi[:, self.iu[1][k]]
+                mc[k], ms[k] = w @ c2, w @ s2
         iu = self.iu
         G = gram_blocks(sym_blocks(self.m0, iu, J), sym_blocks(mc[None], iu, J), sym_blocks(ms[None], iu, J))
         return float(explained_ss(G, b[None], self.jitter)[0])
@@ -359,6 +370,14 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
         grid = check_frequency_grid(x, freq_grid)
         step = float(np.min(np.diff(np.unique(grid)))) if grid.size > 1 else res
     # the automatic grid is scanned by NUFFT (fft_scan's default), a user grid as ls_scan chooses
+    fits = {}
+
+    def joint_fit(fs):            # the same frequency list gives the same fit: the greedy loop's fits are reused
+        key = tuple(float(f) for f in fs)
+        if key not in fits:
+            fits[key] = _joint_fit(x, y, v, basis, list(key), B, lam)
+        return fits[key]
+
     plan = _scan_plan(x, grid, Phi, scan_plans, "nufft" if freq_grid is None else "auto")
     scan = lambda r: (grid, plan.ess(r))  # noqa: E731
     found = []
@@ -384,7 +403,7 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
             if -opt.fun >= ess[k]:
                 f = float(opt.x)
         found.append(f)
-        model = _joint_fit(x, y, v, basis, found, B, lam)
+        model = joint_fit(found)
         r = y - model.predict(x, v, base=B)
     if model is None:
         raise DataError("no periodic component could be fitted: the scan has no finite power at any frequency "
@@ -394,7 +413,7 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
     expl = np.empty(freqs.size)
     for c in range(freqs.size):
         others = [f for i, f in enumerate(found) if i != c]
-        rss_wo = rss_base if not others else _joint_fit(x, y, v, basis, others, B, lam).rss
+        rss_wo = rss_base if not others else joint_fit(others).rss
         expl[c] = (rss_wo - rss_full) / rss_base
     amp = model.amplitude(v if v is not None else None) if J > 1 else np.abs(model.coef)
     rms = np.sqrt(np.mean(amp**2, axis=1))
@@ -405,7 +424,7 @@ def find_periodic_components(position, signal, schedule=None, freq_grid=None, n_
         trend = np.linalg.lstsq(A, amp.T, rcond=None)[0][1]
     order = np.argsort(-expl)
     sel = lambda a: None if a is None else a[order]  # noqa: E731
-    model_sorted = _joint_fit(x, y, v, basis, list(freqs[order]), B, lam)
+    model_sorted = joint_fit(freqs[order])
     return PeriodicComponents(freqs=freqs[order], amplitudes=rms[order], explained_fraction=expl[order],
                               total_explained_fraction=float((rss_base - rss_full) / rss_base),
                               base_explained_fraction=float((tss - rss_base) / tss), basis=basis,
