@@ -116,3 +116,37 @@ def test_cli_refuses_a_bad_thread_count(tmp_path, capsys):
     assert main(["diagnose", str(f), "--threads", "0", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--threads" in err and "Traceback" not in err, err
+
+
+def test_joint_columns_are_kept_while_the_rows_are_the_same():
+    """JointData.cached_columns: the detectors' position kernels and Stribeck shapes are built once per set of used
+    rows (read-only), built again after rows are dropped, and not kept beyond COLUMN_CACHE_MAX_ELEMS numbers; a
+    pickled joint carries none of them."""
+    import pickle
+
+    from drake_est.diagnose import nominal
+
+    n = 1000
+    t = np.arange(n) * 0.01
+    jd = nominal.JointData(joint=1, col=0, t=t, q=np.sin(t), v=np.cos(t), a=-np.sin(t), tau=np.zeros(n),
+                           rb=np.zeros(n), rows=np.arange(n), train=np.arange(n) % 2 == 0, val=np.arange(n) % 2 == 1)
+    calls = []
+
+    def make():
+        calls.append(1)
+        return np.outer(jd.q[jd.rows], [1.0, 2.0])
+
+    A = jd.cached_columns(("k", 2), make)
+    assert jd.cached_columns(("k", 2), make) is A and len(calls) == 1
+    assert not A.flags.writeable
+    jd.drop_rows(np.arange(n) < 10)
+    B = jd.cached_columns(("k", 2), make)
+    assert len(calls) == 2 and B.shape == (n - 10, 2)
+    assert "column_cache" in jd.__dict__ and pickle.loads(pickle.dumps(jd)).column_cache == {}
+    old = nominal.COLUMN_CACHE_MAX_ELEMS
+    try:
+        nominal.COLUMN_CACHE_MAX_ELEMS = 10
+        C = jd.cached_columns(("k", 3), make)
+        assert jd.cached_columns(("k", 3), make) is not C and len(calls) == 4      # too big to keep
+    finally:
+        nominal.COLUMN_CACHE_MAX_ELEMS = old

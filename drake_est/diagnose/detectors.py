@@ -120,7 +120,8 @@ def position_kernels_at(jd, effect, K, lo, hi):
     width = (hi - lo) / (K - 1)
     s = _sgn(jd.v[jd.rows])[:, None] if signed else 1.0
     H = np.empty((q.size, 0)) if signed else np.column_stack([np.sin(q), np.cos(q)])
-    C = np.hstack([H, s * gaussian_features(q, centers, width)])
+    G = jd.cached_columns(("gauss", float(lo), float(hi), int(K)), lambda: gaussian_features(q, centers, width))
+    C = np.hstack([H, s * G])
     spec = {"effect": effect, "centers": centers.tolist(), "width": float(width)}
     names = [f"{prefix}{k}" for k in range(K)]
     if not signed:
@@ -509,7 +510,8 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
 
     def trial(shape):
         """Inner-split error and columns of one (vs, delta); ks >= 0: a friction excess at standstill."""
-        C = stribeck_columns(v, {"vs": shape[0], "delta": shape[1]}, _sgn)
+        C = jd.cached_columns(("stribeck", float(shape[0]), float(shape[1])),
+                              lambda: stribeck_columns(v, {"vs": shape[0], "delta": shape[1]}, _sgn))
         return fit_inner(C, nonneg=True), C
     for (vs, delta), (err, C) in zip(shapes, pmap(trial, shapes)):      # the grid's trials at once, chosen in order
         if best is None or err < best[0]:
@@ -554,7 +556,8 @@ def stribeck(jd, r, fit_inner, falling: bool = False):
 
     def basis_trial(b):
         """Inner-split error and columns of one basis (kernel, speeds)."""
-        Cb = stribeck_columns(v, {"basis_speeds": b[1], "basis_kernel": b[0]}, _sgn)
+        Cb = jd.cached_columns(("stribeck_basis", b[0], tuple(float(x) for x in b[1])),
+                               lambda: stribeck_columns(v, {"basis_speeds": b[1], "basis_kernel": b[0]}, _sgn))
         return fit_inner(Cb, nonneg=True), Cb
     for (kernel, sp), (e, Cb) in zip(bases, pmap(basis_trial, bases)):
         if e < err_p and (basis is None or e < basis[0]):

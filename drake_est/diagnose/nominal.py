@@ -79,12 +79,35 @@ class JointData:
     #: with the t, q, v arrays they came from: those full-length arrays are not changed by any step of a diagnosis
     #: (rows are dropped, the arrays stay), so the lines are computed once per joint, not once per round
     motion_lines: dict = field(default_factory=dict, repr=False, compare=False)
+    #: columns the detectors build round after round from the used rows alone (position kernels, Stribeck shapes):
+    #: :meth:`cached_columns`; not pickled
+    column_cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __getstate__(self):
         state = dict(self.__dict__)
         state["scan_plans"] = {}
         state["motion_lines"] = {}
+        state["column_cache"] = {}
         return state
+
+    def cached_columns(self, key, make) -> np.ndarray:
+        """``make()``, columns that depend only on this joint's used rows and ``key`` (e.g. the Gaussian kernels of
+        one size over one range), kept while ``rows`` is the same array and at most :data:`COLUMN_CACHE_MAX_ELEMS`
+        numbers are kept; returned read-only.  Every round's position and Stribeck candidates build the same columns
+        again otherwise."""
+        c = self.column_cache
+        if c.get("_rows") is not self.rows:          # rows dropped (a new array): nothing kept is valid
+            c.clear()
+            c["_rows"] = self.rows
+        hit = c.get(key)
+        if hit is not None:
+            return hit
+        A = np.asarray(make())
+        A.setflags(write=False)
+        size = sum(v.size for k, v in list(c.items()) if k != "_rows")
+        if size + A.size <= COLUMN_CACHE_MAX_ELEMS and c.get("_rows") is self.rows:
+            c[key] = A
+        return A
 
     def drop_rows(self, mask) -> None:
         """Stop using the rows where ``mask`` (over ``rows``) is True: ``rows``, ``train`` and ``val`` together."""
@@ -95,6 +118,10 @@ class JointData:
     def y(self) -> np.ndarray:
         """Torque not explained by the rigid-body model, at the used rows."""
         return (self.tau - self.rb)[self.rows]
+
+
+#: :meth:`JointData.cached_columns` keeps at most this many numbers per joint (64 MB)
+COLUMN_CACHE_MAX_ELEMS = 8_000_000
 
 
 @dataclass
