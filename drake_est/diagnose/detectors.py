@@ -308,6 +308,7 @@ def energy(jd, r, friction_full, fit_train, n_iter=2, energy_fn=None):
     v = jd.v
     F = friction_full
     best = None
+    s_used, v_used = _sgn(v)[jd.rows], v[jd.rows]
     for it in range(n_iter):
         W = np.abs(F * v)
         best = None
@@ -315,7 +316,8 @@ def energy(jd, r, friction_full, fit_train, n_iter=2, energy_fn=None):
             E = energy_fn(t, W, tau)
             # LPV form (9.29): k_c(E) and k_v(E), both linear in E (the Coulomb-only form (9.22) leaves the
             # viscous drift of a warming joint to be mistaken for another effect, e.g. an abrupt change)
-            C = np.column_stack([_sgn(v) * E, v * E])[jd.rows]
+            Eu = E[jd.rows]
+            C = np.column_stack([s_used * Eu, v_used * Eu])
             err, coef = fit_train(C)
             if best is None or err < best[0]:
                 best = (err, tau, C, coef, E)
