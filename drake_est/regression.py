@@ -107,12 +107,10 @@ def _weights(A, lam, penalize, column_scaled):
 NORMAL_MIN_DIAG_RATIO = 1e-5
 
 
-def _normal_solve(A, y, w):
-    """(A^T A + diag(w^2)) k = A^T y by the Cholesky factor of the column-scaled matrix; None when that factor's
-    diagonal ratio is below :data:`NORMAL_MIN_DIAG_RATIO` (then least squares on the rows is accurate where the
-    squared condition number of the normal equations would not be)."""
-    G = A.T @ A
-    G[np.diag_indices_from(G)] += w * w
+def scaled_cholesky_solve(G, g, min_diag_ratio: float = NORMAL_MIN_DIAG_RATIO):
+    """G k = g for a symmetric Gram matrix ``G`` by the Cholesky factor of its unit-diagonal scaling; None when the
+    factorization fails or the factor's diagonal ratio is below ``min_diag_ratio`` (the squared condition number
+    of normal equations would then cost accuracy: solve least squares on the rows instead).  ``g``: (p,) or (p, m)."""
     d = np.sqrt(np.diag(G))
     d[d <= 0] = 1.0
     try:
@@ -120,11 +118,17 @@ def _normal_solve(A, y, w):
     except np.linalg.LinAlgError:
         return None
     dl = np.abs(np.diag(L))
-    if not dl.min() >= NORMAL_MIN_DIAG_RATIO * dl.max():
+    if not dl.min() >= min_diag_ratio * dl.max():
         return None
-    g = A.T @ y
-    dd = d if g.ndim == 1 else d[:, None]
+    dd = d if np.ndim(g) == 1 else d[:, None]
     return scipy.linalg.cho_solve((L, True), g / dd) / dd
+
+
+def _normal_solve(A, y, w):
+    """(A^T A + diag(w^2)) k = A^T y by :func:`scaled_cholesky_solve`; None when it declines."""
+    G = A.T @ A
+    G[np.diag_indices_from(G)] += w * w
+    return scaled_cholesky_solve(G, A.T @ y)
 
 
 def ridge_solve(A, y, lam: float = 0.0, penalize=None, column_scaled: bool = False,
@@ -134,8 +138,8 @@ def ridge_solve(A, y, lam: float = 0.0, penalize=None, column_scaled: bool = Fal
     Only the penalized rows are appended (rows of D that are zero change nothing).  Fast path of
     :func:`ridge_fit` without the degrees of freedom; ``column_scaled`` see the module docstring.
     ``normal_equations``: solve (A^T A + lam D^2) k = A^T y by the Cholesky factor of the column-scaled matrix
-    (on the diagnosis' 9,600 x 35-45 systems 2.6 times faster than the SVD), falling back to the SVD when that factor is ill-conditioned
-    (:data:`NORMAL_MIN_DIAG_RATIO`); the diagnosis fits thousands of tall systems."""
+    (on the diagnosis' 9,600 x 35-45 systems 2.6 times faster than the SVD), falling back to the SVD when that
+    factor is ill-conditioned (:data:`NORMAL_MIN_DIAG_RATIO`); the diagnosis fits thousands of tall systems."""
     A = np.asarray(A, dtype=float)
     y = np.asarray(y, dtype=float)
     if check_lam(lam) == 0:

@@ -30,7 +30,7 @@ from drake_est.diagnose.parallel import diagnosis_threads, pmap
 from drake_est.diagnose.nominal import (block_index, joint_tau_step, nominal_columns, nominal_names, prepare,
                                         screen_outliers)
 from drake_est.metrics import metrics_table
-from drake_est.regression import ridge_solve
+from drake_est.regression import ridge_solve, scaled_cholesky_solve
 
 ALPHA = 1e-4          # significance level of the held-out F-test
 MIN_GAIN = 0.02       # minimum relative reduction of the held-out RMSE of the affected joint(s)
@@ -139,18 +139,7 @@ class InnerFits:
         self.p = X.shape[1]
 
     def _solve(self, G, g):
-        d = np.sqrt(np.diag(G))
-        d[d <= 0] = 1.0
-        Gs = G / d[:, None] / d[None, :]
-        try:
-            L = np.linalg.cholesky(Gs)
-            dl = np.abs(np.diag(L))
-            if dl.min() >= GRAM_MIN_DIAG_RATIO * dl.max():
-                z = scipy.linalg.cho_solve((L, True), g / d)
-                return z / d
-        except np.linalg.LinAlgError:
-            pass
-        return None
+        return scaled_cholesky_solve(G, g, GRAM_MIN_DIAG_RATIO)
 
     def coef(self, C, nonneg=False):
         """Coefficients of ``[X, C]`` on the fitted rows (``nonneg``: C's coefficients kept >= 0 too)."""
