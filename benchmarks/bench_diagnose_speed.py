@@ -65,6 +65,20 @@ def readme_table(out, source="diagnose_speed.json") -> list:
             if out.get("pool_workers") and n and out.get(key) is not None]
 
 
+def cpu_model() -> str:
+    """The processor's model name (/proc/cpuinfo on Linux, else :func:`platform.processor`): the same code takes
+    1.5-3x longer on some 2-core machines than on others, so each kept JSON says which one it ran on."""
+    import platform
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
 def _diagnose_one(item):
     """(name, findings) of one log diagnosed in a worker process (one thread: the workers take a core each)."""
     from drake_est.diagnose import diagnose
@@ -167,7 +181,8 @@ def main(argv=None):
            "n_loop_logs": len(lp),
            "loop_total_wall_s": float(sum(r["wall_s"] for r in lp)), "loop_total_cpu_s": float(sum(r["cpu_s"] for r in lp)),
            "loop_max_cpu_s": float(max((r["cpu_s"] for r in lp), default=0.0)),
-           "load_average_1min": os.getloadavg()[0], "cpu_count": os.cpu_count(), "threads": threads}
+           "load_average_1min": os.getloadavg()[0], "cpu_count": os.cpu_count(), "cpu_model": cpu_model(),
+           "threads": threads}
     if threads > 1:
         # the second run of each log, on `threads` threads: the same reports (checked above), the time to them
         for key, sel in (("generic", gen), ("loop", lp)):
@@ -186,7 +201,7 @@ def main(argv=None):
     print(f"{len(gen)} generic logs of {N_SAMPLES} samples: total wall {out['generic_total_wall_s']:.1f} s, "
           f"CPU {out['generic_total_cpu_s']:.1f} s (slowest {out['generic_max_cpu_s']:.1f} s CPU); "
           f"IRB 140 log: wall {out['irb140_wall_s']:.1f} s, CPU {out['irb140_cpu_s']:.1f} s; "
-          f"load average {out['load_average_1min']:.1f} on {out['cpu_count']} cores")
+          f"load average {out['load_average_1min']:.1f} on {out['cpu_count']} cores ({out['cpu_model']})")
     if lp:
         print(f"{len(lp)} closed-loop logs of {N_SAMPLES} samples: total wall {out['loop_total_wall_s']:.1f} s, "
               f"CPU {out['loop_total_cpu_s']:.1f} s (slowest {out['loop_max_cpu_s']:.1f} s CPU)")

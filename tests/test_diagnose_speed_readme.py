@@ -24,13 +24,17 @@ def test_readme_speed_table_matches_the_kept_json():
     assert out["generic_pool_wall_s"] < 60
     # ten closed-loop logs on two workers: met on the earlier sessions' machines, 60.1 s on the fifty-sixth's; the docs
     # must say so whenever the kept JSON misses it
-    said10 = "ten closed-loop logs on two worker processes meet the 60 s goal" in " ".join(text.split())
+    flat = " ".join(text.split()).lower()
+    said10 = "ten closed-loop logs on two worker processes do not meet the 60 s goal" in flat
     assert (out["loop_pool_wall_s"] < 60) == (not said10)
-    said = "a single closed-loop log with two effects does not meet the 10 s goal" in " ".join(text.split())
+    said = "a single closed-loop log with two effects does not meet the 10 s goal" in flat
     # "one log on 2 cores": the slowest closed-loop log's wall time on the threads of one diagnosis when the JSON has
     # that run (its reports equal the one-thread ones, checked by the benchmark), else its one-thread CPU time
     slowest = out.get("loop_max_wall_threads_s", out["loop_max_cpu_s"])
     assert (slowest < 10) == (not said)
+    # the same code's time depends on the machine (1.6-1.8x between two sessions' 2-core machines): the JSON names it
+    assert out.get("cpu_model"), "the kept speed JSON names no processor"
+    assert out["cpu_model"] in text, "the speed section does not name the kept run's processor"
     if "threads" in out:
         assert out["threads"] == 2 and out.get("reports_identical_across_threads") is True
         assert all("wall_threads_s" in r for r in out["rows"])

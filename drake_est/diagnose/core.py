@@ -130,6 +130,10 @@ class InnerFits:
     def __init__(self, X, y, fit_rows, err_rows=None, nonneg=(0,)):
         self.fit_rows = fit_rows
         self.err_rows = err_rows
+        # the rows as indices, taken once: a trial selects its columns' rows with ``take`` (the same numbers as the
+        # boolean masks, several times faster on ~10^4 of ~4.5 x 10^4 rows; thousands of trials a diagnosis)
+        self._fit_idx = np.flatnonzero(fit_rows)
+        self._err_idx = None if err_rows is None else np.flatnonzero(err_rows)
         self.Xa, self.ya = X[fit_rows], y[fit_rows]
         self.Gxx = self.Xa.T @ self.Xa
         self.gx = self.Xa.T @ self.ya
@@ -143,7 +147,7 @@ class InnerFits:
 
     def coef(self, C, nonneg=False):
         """Coefficients of ``[X, C]`` on the fitted rows (``nonneg``: C's coefficients kept >= 0 too)."""
-        return self._coef(C[self.fit_rows], nonneg)
+        return self._coef(C.take(self._fit_idx, axis=0), nonneg)
 
     def _coef(self, Ca, nonneg=False):
         p, k = self.p, Ca.shape[1]
@@ -170,12 +174,12 @@ class InnerFits:
 
     def error(self, C, nonneg=False):
         """Sum of squared errors of ``[X, C]`` on the error rows."""
-        Ca = C[self.fit_rows]
+        Ca = C.take(self._fit_idx, axis=0)
         c = self._coef(Ca, nonneg)
         if self.err_rows is None:
             e = self.ya - self.Xa @ c[:self.p] - Ca @ c[self.p:]
         else:
-            e = self.yb - self.Xb @ c[:self.p] - C[self.err_rows] @ c[self.p:]
+            e = self.yb - self.Xb @ c[:self.p] - C.take(self._err_idx, axis=0) @ c[self.p:]
         return float(e @ e), c
 
 
