@@ -276,7 +276,8 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
     and position samples leaves
     e = M(t - d) - M(t), i.e. mostly the k = d/h column; a zero-phase derivative filter leaves an even error
     that the odd difference does not pick up.  Returns (p, share, shift_s, var_e, D_k bin centres, mean residual
-    per bin) for the best k (p
+    per bin, signed delay estimate c k h [s] from the best column's coefficient c, > 0 where the torque lags) for the
+    best k (p
     Bonferroni-corrected over the K shifts tried) or None; generic axes only.  Away from the reversals, where
     dM/dt changes slowly, the D_k are nearly proportional to k and the best k is a weak estimate of the
     delay; the velocity-reversal test's Coulomb-step equivalent (:func:`reversal_impulse`) is the better one."""
@@ -316,16 +317,18 @@ def _time_shift(prep, fit, j, n_max=20000, max_shift_s=0.1):
             continue
         gain = float(D @ e) ** 2 / dd
         if best is None or gain > best[0]:
-            best = (gain, k)
+            best = (gain, k, float(D @ e) / dd)
     if best is None or ss <= 0:
         return None
-    gain, k = best
+    gain, k, c = best
     n = idx.size
     dof = max(n - Nu.shape[1] - 1, 1)
     F = gain / max((ss - gain) / dof, 1e-300)
     p = min(1.0, K * float(scipy.stats.f.sf(F, 1, dof)))
     # where it lies: the mean residual over quantile bins of the best odd difference D_k (a plot, not the test)
-    return (p, gain / ss, k * h, float(ss / n), *bin_profile(P(0.5 * (M[idx - k] - M[idx + k])), e))
+    # e ~ c D_k with D_k ~ -k h dM/dt, and a torque that lags the position by d leaves e = M(t - d) - M(t) ~ -d dM/dt:
+    # the signed delay estimate is c k h (> 0: the torque samples lag the position samples)
+    return (p, gain / ss, k * h, float(ss / n), *bin_profile(P(0.5 * (M[idx - k] - M[idx + k])), e), c * k * h)
 
 
 def _model_off_selection(prep, fit):
@@ -735,6 +738,8 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE, 
                 d["samples"] = (f"moving samples with one velocity sign for {SIGN_GUARD_S:g} s (or the largest shift) "
                                 "on both sides")
                 d["best_shift_s"] = where
+                # signed (> 0: the torque samples lag the position samples), from the best shift's coefficient
+                d["torque_delay_s"] = float(r[6])
             else:
                 d["largest_deviation_bin_upper_edge"] = where
                 if name == "jerk_excluded_samples":
