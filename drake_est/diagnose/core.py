@@ -1992,10 +1992,11 @@ def _structure_text(where) -> str:
 
 
 def delay_nuisance(prep, j) -> np.ndarray:
-    """Column (at the joint's used rows) of what a delay d between the torque and position samples leaves in the
-    residual: M(t - d) - M(t) ~ -d dM/dt, whose rigid-body part is -d J x jerk (the derivative of the smoothed
-    acceleration; the time-shift test's odd difference D_k, :func:`~drake_est.diagnose.unexplained._time_shift`, is
-    nearly proportional to it away from velocity reversals)."""
+    """Columns (at the joint's used rows) of what a delay d between the torque and position samples leaves in the
+    residual: M(t - d) - M(t) ~ -d dM/dt, whose inertia and viscous parts are -d J x jerk and -d kv x qdd (the jerk is
+    the derivative of the smoothed acceleration; the time-shift test's odd difference D_k,
+    :func:`~drake_est.diagnose.unexplained._time_shift`, is nearly proportional to dM/dt away from velocity
+    reversals).  Returns [jerk, qdd]."""
     jd = prep.joints[j]
     return np.column_stack([np.gradient(jd.a, jd.t)[jd.rows], jd.a[jd.rows]])
 
@@ -2005,8 +2006,8 @@ def finding_explained_by_delay(prep, model, unexplained, alpha, min_gain):
     joint whose final residual shows the torque shifted in time against the position (the
     ``time_shift_torque_vs_position`` entry of :func:`~drake_est.diagnose.unexplained.residual_structure`), a
     single-joint finding whose columns do not predict the held-out residual given the other findings and the delay's
-    column (:func:`delay_nuisance`; partial held-out F-test at ``alpha``, gain ``min_gain``), while that column given
-    the finding does.  A delay between the channels is not in the vocabulary; on a repeated motion the misfit d x
+    columns (:func:`delay_nuisance`; partial held-out F-test at ``alpha``, gain ``min_gain``), while those columns
+    given the finding do.  A delay between the channels is not in the vocabulary; on a repeated motion the misfit d x
     dM/dt it leaves is a function of the position along the path, and a position law takes part of it (loop spec
     20547: a 0.0315 s delay of the encoder at 250 Hz named a position load).  The latest such finding as
     ``(ext, why)``, else None."""
@@ -2029,10 +2030,11 @@ def finding_explained_by_delay(prep, model, unexplained, alpha, min_gain):
         return e, {
             "reason": (f"a delay between the torque and position samples of joint {j}, which no vocabulary entry "
                        f"describes, explains it: the final residual shows the torque shifted in time against the "
-                       f"position, and given the other findings and the delay's column (the jerk, -d dM/dt) it lowers "
-                       f"the held-out RMSE by {100 * t['rmse_reduction']:.2f} % (p = {t['p_value']:.2g}), not "
-                       f"significantly (alone, given the other findings, by {100 * own['rmse_reduction']:.1f} %), "
-                       f"while the delay's column given it lowers it by {100 * back['rmse_reduction']:.2f} % "
+                       f"position, and given the other findings and the delay's columns (the jerk and the "
+                       f"acceleration, -d dM/dt) it lowers the held-out RMSE by {100 * t['rmse_reduction']:.2f} % "
+                       f"(p = {t['p_value']:.2g}), not significantly (alone, given the other findings, by "
+                       f"{100 * own['rmse_reduction']:.1f} %), while those columns given it lower it by "
+                       f"{100 * back['rmse_reduction']:.2f} % "
                        f"(p = {back['p_value']:.2g})"),
             "explained_by_delay": True, "finding_given_delay": comp._brief(t), "delay_given_finding": comp._brief(back),
             "heldout_rmse_reduction_alone": own["rmse_reduction"],
