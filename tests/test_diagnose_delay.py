@@ -72,3 +72,11 @@ def test_a_ripple_beside_an_abrupt_change_is_kept():
     rep = diagnose(log, robot="generic", seed=0, simulate=False)
     assert sorted(rep.effects) == sorted(truth["effects"])
     assert not [s for s in rep.to_dict()["set_aside"] if s.get("explained_by_delay")]
+
+
+def test_the_console_summary_says_what_was_set_aside(delayed):
+    rep, _ = delayed
+    text = rep.summary()
+    assert "no finding: 1 set aside after the search (below)" in text
+    assert ("SET ASIDE position_dependent_load (joint 1): a delay between the torque and position samples of joint 1, "
+            "which no vocabulary entry describes, explains it; not named") in text

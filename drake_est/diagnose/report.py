@@ -264,8 +264,10 @@ class DiagnosisReport:
             lines.append(f"  joint {j} skipped: {r}")
         nv = d["nominal"]["validation"]
         lines.append(f"nominal model: held-out RMSE {_num(nv['rmse'], '.4g')} {u}, Fit {_num(nv['fit'], '.1f')} %")
+        aside = d.get("set_aside") or []
         if not d["findings"]:
-            lines.append("no finding: no extension passed the test" + (
+            lines.append(("no finding: no extension passed the test" if not aside else
+                          f"no finding: {len(aside)} set aside after the search (below)") + (
                 "" if d.get("unexplained") else "; the nominal model explains the held-out data"))
         for f in d["findings"]:
             ev = f["evidence"]
@@ -289,6 +291,12 @@ class DiagnosisReport:
         for lg in d.get("logs", []):
             lines.append(f"  log {lg['log']} ({lg['role']}, joint {lg['joint']}) {lg['file']}: RMSE {lg['nominal_rmse']:.4g} -> "
                          f"{lg['final_rmse']:.4g} {u} ({100 * lg['rmse_reduction']:.0f} % lower)")
+        for x in aside:
+            # the reason's first clause (the whole reason is in report.md)
+            why = str(x.get("reason", "")).split(": ")[0]
+            why = why if len(why) <= 160 else why[:157] + "..."
+            where = f" (joint {x['joint']})" if x.get("joint") is not None else ""
+            lines.append(f"SET ASIDE {x['effect']}{where}: {why}; not named (report.md, Findings set aside)")
         fv = d["final"]["validation"]
         named = ", ".join(f"{f['effect']} (joint {f['joint']})" for f in d["findings"]) or "(nominal)"
         lines.append(f"final model {named}: held-out RMSE {fv['rmse']:.4g} {u}, "
