@@ -1859,6 +1859,22 @@ def _beside_stribeck(model, effects) -> list:
     return [e for e in model.exts if e.effect in effects and not e.shared and e.joint in stribeck]
 
 
+def _finding_against_nuisance(prep, model, e, N, alpha, min_gain):
+    """The partial held-out tests of the single-joint finding ``e`` of the final ``model`` against nuisance columns
+    ``N`` of its joint, each with the other findings in the model (the search's ridge, :func:`_model_solver`): None when
+    ``e`` predicts the held-out residual given ``N`` (it stands), else ``(t, own, back)``: ``e`` given ``N``, ``e``
+    alone, and ``N`` given ``e`` (:func:`~drake_est.diagnose.competition._partial_test` results)."""
+    j = e.joint
+    m0 = Model(prep, [x for x in model.exts if x is not e])
+    solve = _model_solver(m0, j)
+    t = comp._partial_test(prep, m0, j, N, e.cols[j], alpha, min_gain, solve)
+    if t["significant"]:
+        return None
+    own = comp._partial_test(prep, m0, j, np.zeros((N.shape[0], 0)), e.cols[j], alpha, min_gain, solve)
+    back = comp._partial_test(prep, m0, j, e.cols[j], N, alpha, min_gain, solve)
+    return t, own, back
+
+
 def _within_speed_curve(prep, model, effects, spread, alpha, min_gain, law, cause, digits):
     """The first finding of the final ``model`` with an effect in ``effects`` (single-joint, on a joint whose model
     also holds a Stribeck finding) whose columns do not predict the joint's held-out residual given the other findings
@@ -1872,14 +1888,10 @@ def _within_speed_curve(prep, model, effects, spread, alpha, min_gain, law, caus
         N = comp.speed_law_nuisance(prep, j, spread=spread)
         if N is None:
             continue
-        m0 = Model(prep, [x for x in model.exts if x is not e])
-        solve = _model_solver(m0, j)
-        t = comp._partial_test(prep, m0, j, N, e.cols[j], alpha, min_gain, solve)
-        if t["significant"]:
+        tests = _finding_against_nuisance(prep, model, e, N, alpha, min_gain)
+        if tests is None:
             continue
-        zero = np.zeros((N.shape[0], 0))
-        own = comp._partial_test(prep, m0, j, zero, e.cols[j], alpha, min_gain, solve)
-        back = comp._partial_test(prep, m0, j, e.cols[j], N, alpha, min_gain, solve)
+        t, own, back = tests
         return e, {
             "reason": (f"a free friction curve of the speed of joint {j} explains it: given the other findings and the "
                        f"curve ({N.shape[1]} columns) it lowers the held-out RMSE by "
@@ -2017,15 +2029,10 @@ def finding_explained_by_delay(prep, model, unexplained, alpha, min_gain):
         N = delay_nuisance(prep, j)
         if not np.all(np.isfinite(N)):
             continue
-        m0 = Model(prep, [x for x in model.exts if x is not e])
-        solve = _model_solver(m0, j)
-        t = comp._partial_test(prep, m0, j, N, e.cols[j], alpha, min_gain, solve)
-        if t["significant"]:
+        tests = _finding_against_nuisance(prep, model, e, N, alpha, min_gain)
+        if tests is None or not tests[2]["p_value"] < alpha:
             continue
-        back = comp._partial_test(prep, m0, j, e.cols[j], N, alpha, min_gain, solve)
-        if not back["p_value"] < alpha:
-            continue
-        own = comp._partial_test(prep, m0, j, np.zeros((N.shape[0], 0)), e.cols[j], alpha, min_gain, solve)
+        t, own, back = tests
         shift = [u for u in unexplained if u.get("variable") == "time_shift_torque_vs_position" and u["joint"] == j]
         return e, {
             "reason": (f"a delay between the torque and position samples of joint {j}, which no vocabulary entry "
@@ -2401,7 +2408,7 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
                     continue
             if state is None and n_delay < MAX_NOT_CONFIRMED:
                 # the final model's findings on a joint whose residual shows a delay between torque and position, each
-                # against the delay's column
+                # against the delay's columns
                 delayed = finding_explained_by_delay(prep, model, unexplained, alpha, min_gain)
                 if delayed is not None:
                     n_delay += 1
