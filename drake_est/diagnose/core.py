@@ -2049,6 +2049,82 @@ def finding_explained_by_delay(prep, model, unexplained, alpha, min_gain):
     return None
 
 
+def _joint_candidates(prep, model, fit, j, accepted):
+    """:func:`_candidates` of joint ``j`` alone (the other joints' detectors are not run)."""
+    cache = {k: [] for k in prep.joints if k != j}
+    return [c for c in _candidates(prep, model, fit, accepted, cache, {j})
+            if not c.shared and c.joint == j and list(c.cols) == [j]]
+
+
+def mark_level_within_rival_pair(prep, model, steps, unexplained, sigma, alpha=ALPHA) -> list:
+    """An asymmetric Coulomb level named on a joint whose final residual holds structure (``unexplained``), against a
+    rival that contains it (a position load: its kernels sum to a constant over the positions visited,
+    :func:`_contains`) taken with a second law: the model without the level plus the rival and one more candidate
+    of the joint (or none), against the same model plus the level and one more candidate (or none), the best pair of
+    each by held-out RMSE.  When the rival's pair predicts the held-out blocks better
+    (:func:`~drake_est.diagnose.competition.paired_block_test` at :data:`PAIRED_ALPHA`), the greedy search only chose
+    the level because neither law of that pair wins a round alone (loop spec 21436: a spring-like load beside a
+    Stribeck law at 10 Hz, the joint moving forward at negative positions and back at positive ones, named as the
+    level; the load with the Stribeck law predicts 17 of 20 held-out groups better than the level with it).  The log
+    then does not decide between the level and the rival: the level's step is marked ambiguous with it (its
+    competition fields change in place).  Returns the marked steps."""
+    struct = {int(u["joint"]) for u in unexplained}
+    marked = []
+    for st in steps:
+        e = st.ext
+        if e.shared or e.effect != "asymmetric_coulomb" or e.joint not in struct:
+            continue
+        j = e.joint
+        base = Model(prep, [x for x in model.exts if x is not e])
+        fb = base.fit(sigma)
+        accepted = {(x.effect, None if x.shared else x.joint) for x in base.exts} | {(e.effect, j)}
+        cands = _joint_candidates(prep, base, fb, j, accepted)
+        rivals = [c for c in cands if _contains(prep, c, e)]
+        if not rivals:
+            continue
+        had = comp.ambiguous_rivals(st.competition) if st.competition.get("ambiguous") else []
+
+        def best_pair(first, others):
+            best = None
+            for x in [None] + others:
+                f = Model(prep, base.exts + [first] + ([x] if x is not None else [])).fit(sigma)
+                rm = _val_metrics(prep, f, [j])["rmse"]
+                if best is None or rm < best[0]:
+                    best = (rm, x, f)
+            return best
+        for rv in rivals:
+            if rv.effect in had:
+                continue
+            others = [c for c in cands if c.effect != rv.effect]
+            lv = best_pair(e, others)
+            rp = best_pair(rv, others)
+            if not rp[0] < lv[0]:
+                continue
+            paired = comp.paired_block_test(prep, lv[2], rp[2], [j])
+            if paired["p_value"] >= PAIRED_ALPHA:
+                continue
+            pair = [rv.effect] + ([rp[1].effect] if rp[1] is not None else [])
+            lpair = [e.effect] + ([lv[1].effect] if lv[1] is not None else [])
+            c = st.competition
+            info = {"rival_pair": pair, "heldout_rmse_rival_pair": float(rp[0]), "level_pair": lpair,
+                    "heldout_rmse_level_pair": float(lv[0]), "paired_p_value": float(paired["p_value"]),
+                    "paired_groups": paired["groups"], "groups_rival_pair_better": paired["groups_better"]}
+            reason = (f"{' with '.join(pair)} predicts the held-out data of joint {j} better than {' with '.join(lpair)}"
+                      f" (RMSE {rp[0]:.3g} against {lv[0]:.3g}, {paired['groups_better']} of {paired['groups']} "
+                      f"held-out groups, paired p = {paired['p_value']:.2g}) while the final residual still holds "
+                      f"structure: {rv.effect} holds the level, and the search chose the level because neither law "
+                      "of that pair wins a round alone")
+            if c.get("ambiguous"):
+                st.competition = {**c, "ambiguous_with": had + [rv.effect], "rival_pair": info,
+                                  "reason": f"{c.get('reason', '')}; {reason}".lstrip("; ")}
+            else:
+                st.competition = {**c, "ambiguous": True, "ambiguous_with": [rv.effect], "rival_pair": info,
+                                  "reason": reason}
+            had = comp.ambiguous_rivals(st.competition)
+            marked.append(st)
+    return marked
+
+
 def mark_not_separated_under_misfit(steps, unexplained, min_gain_not_white=MIN_GAIN_NOT_WHITE) -> list:
     """The runner-up counterpart of :func:`finding_not_confirmed`: a later finding on a joint whose final residual
     holds structure must also predict the held-out data of its round better than its significant runner-up by
@@ -2416,6 +2492,7 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
                     out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
                     continue
             if state is None:
+                mark_level_within_rival_pair(prep, model, out[3], unexplained, out[7])
                 mark_not_separated_under_misfit(out[3], unexplained)
                 break
             effect, joint, why = state
