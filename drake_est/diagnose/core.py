@@ -2049,6 +2049,43 @@ def finding_explained_by_delay(prep, model, unexplained, alpha, min_gain):
     return None
 
 
+def finding_explained_by_inertia(prep, model, steps, alpha, min_gain):
+    """A later position load of the final ``model`` that an error of its joint's inertia explains, one way: a
+    direction-independent law of position accepted after another finding of its joint (:func:`_later_steps`) whose
+    columns do not predict the held-out residual given the other findings and a free acceleration column (qdd at the
+    joint's used rows; partial held-out F-test at ``alpha``, gain ``min_gain``), while that column given the load does
+    (p < ``alpha``).  In a point-to-point motion the acceleration is a function of the position along the path (each
+    move speeds up near where it starts and slows down near where it ends, in both directions), so the misfit of an
+    inertia that :func:`~drake_est.diagnose.nominal.prepare` estimated on the low-acceleration rows, and that the
+    backfit (:func:`backfit_inertia`) left within :data:`INERTIA_BACKFIT_REL` of itself, has the shape of a load (loop
+    spec 18186: an abrupt change at 250 Hz, then a load of 2.6 % held-out gain that given the acceleration gains
+    nothing, the inertia 4 % too large).  The latest such finding as ``(ext, why)``, else None."""
+    later = [st for st, _ in _later_steps(steps)
+             if st.ext.effect == "position_dependent_load" and not st.ext.shared
+             and any(x is st.ext for x in model.exts)]
+    for st in reversed(later):
+        e = st.ext
+        j = e.joint
+        jd = prep.joints[j]
+        N = np.asarray(jd.a, float)[jd.rows][:, None]
+        if not np.all(np.isfinite(N)):
+            continue
+        tests = _finding_against_nuisance(prep, model, e, N, alpha, min_gain)
+        if tests is None or not tests[2]["p_value"] < alpha:
+            continue
+        t, own, back = tests
+        return e, {
+            "reason": (f"an error of the inertia of joint {j} explains it: given the other findings and a free "
+                       f"acceleration column it lowers the held-out RMSE by {100 * t['rmse_reduction']:.2f} % "
+                       f"(p = {t['p_value']:.2g}), not significantly (alone, given the other findings, by "
+                       f"{100 * own['rmse_reduction']:.1f} %), while the acceleration given it lowers it by "
+                       f"{100 * back['rmse_reduction']:.2f} % (p = {back['p_value']:.2g}): in point-to-point moves "
+                       "the acceleration is a function of the position"),
+            "explained_by_inertia": True, "finding_given_inertia": comp._brief(t),
+            "inertia_given_finding": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"]}
+    return None
+
+
 def _joint_candidates(prep, model, fit, j, accepted):
     """:func:`_candidates` of joint ``j`` alone (the other joints' detectors are not run)."""
     cache = {k: [] for k in prep.joints if k != j}
@@ -2320,6 +2357,7 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
     n_time_state = 0
     n_sole_state = 0
     n_delay = 0
+    n_inertia = 0
 
     def close_and_search(effect, joint, entry):
         """Close ``effect`` on ``joint`` (None: a shared one), record ``entry`` among the findings set aside and run
@@ -2489,6 +2527,14 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
                 if delayed is not None:
                     n_delay += 1
                     e, why = delayed
+                    out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
+                    continue
+            if state is None and n_inertia < MAX_NOT_CONFIRMED:
+                # ... and the later position loads against a free acceleration column (an error of the inertia)
+                inert = finding_explained_by_inertia(prep, model, out[3], alpha, min_gain)
+                if inert is not None:
+                    n_inertia += 1
+                    e, why = inert
                     out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
                     continue
             if state is None:
