@@ -1875,6 +1875,18 @@ def _finding_against_nuisance(prep, model, e, N, alpha, min_gain):
     return t, own, back
 
 
+def _explained_one_way(prep, model, e, N, alpha, min_gain):
+    """:func:`_finding_against_nuisance` where the nuisance columns ``N`` must also predict the held-out residual given
+    ``e`` (p < ``alpha``): ``(t, own, back)`` when ``N`` explains ``e`` one way, None when ``e`` stands, when ``N``
+    does not predict it, or when ``N`` is not finite."""
+    if not np.all(np.isfinite(N)):
+        return None
+    tests = _finding_against_nuisance(prep, model, e, N, alpha, min_gain)
+    if tests is None or not tests[2]["p_value"] < alpha:
+        return None
+    return tests
+
+
 def _within_speed_curve(prep, model, effects, spread, alpha, min_gain, law, cause, digits):
     """The first finding of the final ``model`` with an effect in ``effects`` (single-joint, on a joint whose model
     also holds a Stribeck finding) whose columns do not predict the joint's held-out residual given the other findings
@@ -2026,11 +2038,8 @@ def finding_explained_by_delay(prep, model, unexplained, alpha, min_gain):
     joints = {u["joint"] for u in unexplained if u.get("variable") == "time_shift_torque_vs_position"}
     for e in reversed([x for x in model.exts if not x.shared and x.joint in joints]):
         j = e.joint
-        N = delay_nuisance(prep, j)
-        if not np.all(np.isfinite(N)):
-            continue
-        tests = _finding_against_nuisance(prep, model, e, N, alpha, min_gain)
-        if tests is None or not tests[2]["p_value"] < alpha:
+        tests = _explained_one_way(prep, model, e, delay_nuisance(prep, j), alpha, min_gain)
+        if tests is None:
             continue
         t, own, back = tests
         shift = [u for u in unexplained if u.get("variable") == "time_shift_torque_vs_position" and u["joint"] == j]
@@ -2067,11 +2076,8 @@ def finding_explained_by_inertia(prep, model, steps, alpha, min_gain):
         e = st.ext
         j = e.joint
         jd = prep.joints[j]
-        N = np.asarray(jd.a, float)[jd.rows][:, None]
-        if not np.all(np.isfinite(N)):
-            continue
-        tests = _finding_against_nuisance(prep, model, e, N, alpha, min_gain)
-        if tests is None or not tests[2]["p_value"] < alpha:
+        tests = _explained_one_way(prep, model, e, np.asarray(jd.a, float)[jd.rows][:, None], alpha, min_gain)
+        if tests is None:
             continue
         t, own, back = tests
         return e, {
@@ -2093,7 +2099,7 @@ def _joint_candidates(prep, model, fit, j, accepted):
             if not c.shared and c.joint == j and list(c.cols) == [j]]
 
 
-def mark_level_within_rival_pair(prep, model, steps, unexplained, sigma, alpha=ALPHA) -> list:
+def mark_level_within_rival_pair(prep, model, steps, unexplained, sigma) -> list:
     """An asymmetric Coulomb level named on a joint whose final residual holds structure (``unexplained``), against a
     rival that contains it (a position load: its kernels sum to a constant over the positions visited,
     :func:`_contains`) taken with a second law: the model without the level plus the rival and one more candidate
