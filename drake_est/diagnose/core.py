@@ -2092,6 +2092,73 @@ def finding_explained_by_inertia(prep, model, steps, alpha, min_gain):
     return None
 
 
+#: span [s] of the free linear response to the acceleration (:func:`linear_response_nuisance`): four periods of a
+#: 4 Hz resonance
+LINEAR_RESPONSE_SPAN_S = 1.0
+#: at most this many lags of the acceleration in that response (evenly spaced over the span)
+LINEAR_RESPONSE_TAPS = 30
+#: the laws :func:`finding_explained_by_linear_response` holds against that response: smooth laws of the position
+#: and speed.  A law that forces the axis at its own frequency (a time-periodic disturbance, a ripple) or in time (an
+#: abrupt change, a drift) moves it, and a filter of the acceleration replays what it moved (sixty-first round: 17
+#: planted disturbances at 10-100 Hz set aside)
+LINEAR_RESPONSE_EFFECTS = ("position_dependent_load", "position_dependent_friction", "stribeck", "asymmetric_coulomb")
+
+
+def linear_response_nuisance(prep, j, span=LINEAR_RESPONSE_SPAN_S, taps=LINEAR_RESPONSE_TAPS) -> np.ndarray:
+    """Columns (at the joint's used rows) of a free linear response to the acceleration: the smoothed acceleration of
+    joint ``j`` and its copies delayed by lags evenly spaced over ``span`` seconds (at most ``taps`` distinct sample
+    lags; before the log starts, its first value).  A causal filter of the motion of this length takes what an elastic
+    gear's resonance, an error of the inertia or a delay leaves in the torque residual, none of which the vocabulary
+    names as a law of the position, speed or time."""
+    jd = prep.joints[j]
+    a = np.asarray(jd.a, float)
+    t = np.asarray(jd.t, float)
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    lags = np.unique(np.round(np.linspace(0.0, span / dt, taps)).astype(int))
+    lags = lags[lags < a.size]
+    cols = []
+    for m in lags:
+        s = np.empty_like(a)
+        s[m:] = a[:a.size - m]
+        s[:m] = a[0]
+        cols.append(s[jd.rows])
+    return np.column_stack(cols)
+
+
+def finding_explained_by_linear_response(prep, model, unexplained, alpha, min_gain):
+    """A finding of the final ``model`` that a linear response to the acceleration explains, one way: on a joint whose
+    final residual depends on the acceleration (an ``acceleration`` entry of
+    :func:`~drake_est.diagnose.unexplained.residual_structure`), a single-joint smooth law of the position or speed
+    (:data:`LINEAR_RESPONSE_EFFECTS`) whose columns do not predict
+    the held-out residual given the other findings and a free linear response to the acceleration
+    (:func:`linear_response_nuisance`; partial held-out F-test at ``alpha``, gain ``min_gain``), while that response
+    given the finding does.  An elastic gear (a lightly damped resonance between motor and link, the encoder on the
+    motor) adds a torque that is a linear filter of the motion, which no vocabulary entry describes; on a repeated
+    motion a law of the position takes part of it (loop spec 18456: a 6.4 Hz resonance at 1000 Hz named a position
+    load, which given the response gains 0.2 % while the response given it gains 28 %).  The latest such finding as
+    ``(ext, why)``, else None."""
+    joints = {int(u["joint"]) for u in unexplained if u.get("variable") == "acceleration" and u.get("joint") is not None}
+    for e in reversed([x for x in model.exts if not x.shared and x.joint in joints
+                       and x.effect in LINEAR_RESPONSE_EFFECTS]):
+        j = e.joint
+        N = linear_response_nuisance(prep, j)
+        tests = _explained_one_way(prep, model, e, N, alpha, min_gain)
+        if tests is None:
+            continue
+        t, own, back = tests
+        return e, {
+            "reason": (f"a linear response of joint {j} to its acceleration, which no vocabulary entry describes (an "
+                       f"elastic gear's resonance adds one), explains it: given the other findings and the acceleration with "
+                       f"{N.shape[1]} lags over {LINEAR_RESPONSE_SPAN_S:g} s it lowers the held-out RMSE by "
+                       f"{100 * t['rmse_reduction']:.2f} % (p = {t['p_value']:.2g}), not significantly (alone, given "
+                       f"the other findings, by {100 * own['rmse_reduction']:.1f} %), while that response given it "
+                       f"lowers it by {100 * back['rmse_reduction']:.2f} % (p = {back['p_value']:.2g})"),
+            "explained_by_linear_response": True, "finding_given_linear_response": comp._brief(t),
+            "linear_response_given_finding": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"],
+            "linear_response_span_s": LINEAR_RESPONSE_SPAN_S, "linear_response_taps": int(N.shape[1])}
+    return None
+
+
 def _joint_candidates(prep, model, fit, j, accepted):
     """:func:`_candidates` of joint ``j`` alone (the other joints' detectors are not run)."""
     cache = {k: [] for k in prep.joints if k != j}
@@ -2364,6 +2431,7 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
     n_sole_state = 0
     n_delay = 0
     n_inertia = 0
+    n_linear = 0
 
     def close_and_search(effect, joint, entry):
         """Close ``effect`` on ``joint`` (None: a shared one), record ``entry`` among the findings set aside and run
@@ -2541,6 +2609,15 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
                 if inert is not None:
                     n_inertia += 1
                     e, why = inert
+                    out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
+                    continue
+            if state is None and n_linear < MAX_NOT_CONFIRMED:
+                # ... and the findings on a joint whose residual depends on the acceleration against a free linear
+                # response to it (an elastic gear)
+                linear = finding_explained_by_linear_response(prep, model, unexplained, alpha, min_gain)
+                if linear is not None:
+                    n_linear += 1
+                    e, why = linear
                     out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
                     continue
             if state is None:
