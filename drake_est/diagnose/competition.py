@@ -604,7 +604,7 @@ def reversal_columns(jd):
     return np.column_stack(cols)
 
 
-def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, without=()):
+def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, without=(), chosen=None):
     """Columns (at the joint's used rows) of a free function of the state of joint ``j`` that predicts its held-out
     residual: the blocks of :func:`state_blocks` joined one at a time, each time the one that lowers the held-out
     error of the model most (fitted on the training rows), while one does.  Blocks that overlap (the kernels times
@@ -613,7 +613,7 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, wit
     than the model makes any candidate look good given it (loop spec 5775: all blocks at once raised the held-out
     RMSE by 62 %); the forward choice keeps the nuisance a predictor, as :func:`periodic_nuisance` does.  No columns
     when no block lowers the held-out error (the candidate is then tested given the model alone).  ``without``: the
-    names of blocks left out."""
+    names of blocks left out; ``chosen``: a list the names of the blocks joined are appended to, in their order."""
     solve = solve or _lstsq
     from drake_est.diagnose.nominal import nominal_names
     n0 = len(nominal_names(prep.robot_kind))
@@ -635,6 +635,8 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, wit
             break
         best = trial[k]
         cols.append(blocks.pop(k))
+        if chosen is not None:
+            chosen.append(k)
     return np.hstack(cols) if cols else np.zeros((X.shape[0], 0))
 
 
