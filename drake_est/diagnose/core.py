@@ -1439,16 +1439,26 @@ def _state_explains(prep, m0, j, C, alpha, min_gain, without=()):
     RMSE alone, 15 % higher given the state's 14 columns, which were chosen to predict the residual with the
     disturbance still in it).  ``(N, test given the function, own RMSE reduction, the function's)``, else None.  The
     checks of :func:`disturbance_explained_by_state` and :func:`time_law_explained_by_state`."""
+    got = _state_tests(prep, m0, j, C, alpha, min_gain, without=without)
+    if got is None or not got[0].shape[1] or got[3] < got[2]:
+        return None
+    return got
+
+
+def _state_tests(prep, m0, j, C, alpha, min_gain, without=(), chosen=None):
+    """The finding with columns ``C`` against a free function of joint ``j``'s state
+    (:func:`~drake_est.diagnose.competition.state_nuisance` on the model ``m0`` without it, ``without``: blocks left
+    out, ``chosen``: a list the joined blocks' names are appended to): None when ``C`` predicts the held-out residual
+    given the function (partial held-out F-test at ``alpha``, gain ``min_gain``), else ``(N, that test, C's own RMSE
+    reduction, the function's)`` (:func:`_state_explains`, :func:`mark_disturbance_confounded_with_state`)."""
     solve = _model_solver(m0, j)
-    N = comp.state_nuisance(prep, m0, j, solve=solve, without=without)
+    N = comp.state_nuisance(prep, m0, j, solve=solve, without=without, chosen=chosen)
     t = comp._partial_test(prep, m0, j, N, C, alpha, min_gain, solve)
     if t["significant"]:
         return None
     zero = np.zeros((C.shape[0], 0))
     own = comp._partial_test(prep, m0, j, zero, C, alpha, min_gain, solve)["rmse_reduction"]
     state = comp._partial_test(prep, m0, j, zero, N, alpha, min_gain, solve)["rmse_reduction"]
-    if not N.shape[1] or state < own:
-        return None
     return N, t, own, state
 
 
@@ -1887,6 +1897,18 @@ def _explained_one_way(prep, model, e, N, alpha, min_gain):
     return tests
 
 
+def _latest_explained_one_way(prep, model, exts, nuisance, alpha, min_gain):
+    """The latest of the single-joint findings ``exts`` (in the order accepted) that the columns ``nuisance(joint)``
+    explain one way (:func:`_explained_one_way`), as ``(ext, N, (t, own, back))``; None when every one stands (the
+    delay, inertia and linear-response checks)."""
+    for e in reversed(exts):
+        N = nuisance(e.joint)
+        tests = _explained_one_way(prep, model, e, N, alpha, min_gain)
+        if tests is not None:
+            return e, N, tests
+    return None
+
+
 def _within_speed_curve(prep, model, effects, spread, alpha, min_gain, law, cause, digits):
     """The first finding of the final ``model`` with an effect in ``effects`` (single-joint, on a joint whose model
     also holds a Stribeck finding) whose columns do not predict the joint's held-out residual given the other findings
@@ -2036,12 +2058,11 @@ def finding_explained_by_delay(prep, model, unexplained, alpha, min_gain):
     20547: a 0.0315 s delay of the encoder at 250 Hz named a position load).  The latest such finding as
     ``(ext, why)``, else None."""
     joints = {u["joint"] for u in unexplained if u.get("variable") == "time_shift_torque_vs_position"}
-    for e in reversed([x for x in model.exts if not x.shared and x.joint in joints]):
+    got = _latest_explained_one_way(prep, model, [x for x in model.exts if not x.shared and x.joint in joints],
+                                    lambda j: delay_nuisance(prep, j), alpha, min_gain)
+    if got is not None:
+        e, _, (t, own, back) = got
         j = e.joint
-        tests = _explained_one_way(prep, model, e, delay_nuisance(prep, j), alpha, min_gain)
-        if tests is None:
-            continue
-        t, own, back = tests
         shift = [u for u in unexplained if u.get("variable") == "time_shift_torque_vs_position" and u["joint"] == j]
         return e, {
             "reason": (f"a delay between the torque and position samples of joint {j}, which no vocabulary entry "
@@ -2072,14 +2093,12 @@ def finding_explained_by_inertia(prep, model, steps, alpha, min_gain):
     later = [st for st, _ in _later_steps(steps)
              if st.ext.effect == "position_dependent_load" and not st.ext.shared
              and any(x is st.ext for x in model.exts)]
-    for st in reversed(later):
-        e = st.ext
+    got = _latest_explained_one_way(
+        prep, model, [st.ext for st in later],
+        lambda j: np.asarray(prep.joints[j].a, float)[prep.joints[j].rows][:, None], alpha, min_gain)
+    if got is not None:
+        e, _, (t, own, back) = got
         j = e.joint
-        jd = prep.joints[j]
-        tests = _explained_one_way(prep, model, e, np.asarray(jd.a, float)[jd.rows][:, None], alpha, min_gain)
-        if tests is None:
-            continue
-        t, own, back = tests
         return e, {
             "reason": (f"an error of the inertia of joint {j} explains it: given the other findings and a free "
                        f"acceleration column it lowers the held-out RMSE by {100 * t['rmse_reduction']:.2f} % "
@@ -2137,19 +2156,18 @@ def finding_explained_by_linear_response(prep, model, unexplained, alpha, min_ga
     motion a law of the position takes part of it (loop spec 18456: a 6.4 Hz resonance at 1000 Hz named a position
     load, which given the response gains 0.2 % while the response given it gains 28 %).  The latest such finding as
     ``(ext, why)``, else None."""
-    joints = {int(u["joint"]) for u in unexplained if u.get("variable") == "acceleration" and u.get("joint") is not None}
-    for e in reversed([x for x in model.exts if not x.shared and x.joint in joints
-                       and x.effect in LINEAR_RESPONSE_EFFECTS]):
+    joints = {int(u["joint"]) for u in unexplained
+              if u.get("variable") == "acceleration" and u.get("joint") is not None}
+    laws = [x for x in model.exts if not x.shared and x.joint in joints and x.effect in LINEAR_RESPONSE_EFFECTS]
+    got = _latest_explained_one_way(prep, model, laws, lambda j: linear_response_nuisance(prep, j), alpha, min_gain)
+    if got is not None:
+        e, N, (t, own, back) = got
         j = e.joint
-        N = linear_response_nuisance(prep, j)
-        tests = _explained_one_way(prep, model, e, N, alpha, min_gain)
-        if tests is None:
-            continue
-        t, own, back = tests
         return e, {
             "reason": (f"a linear response of joint {j} to its acceleration, which no vocabulary entry describes (an "
-                       f"elastic gear's resonance adds one), explains it: given the other findings and the acceleration with "
-                       f"{N.shape[1]} lags over {LINEAR_RESPONSE_SPAN_S:g} s it lowers the held-out RMSE by "
+                       f"elastic gear's resonance adds one), explains it: given the other findings and the "
+                       f"acceleration with {N.shape[1]} lags over {LINEAR_RESPONSE_SPAN_S:g} s it lowers the held-out "
+                       f"RMSE by "
                        f"{100 * t['rmse_reduction']:.2f} % (p = {t['p_value']:.2g}), not significantly (alone, given "
                        f"the other findings, by {100 * own['rmse_reduction']:.1f} %), while that response given it "
                        f"lowers it by {100 * back['rmse_reduction']:.2f} % (p = {back['p_value']:.2g})"),
@@ -2283,29 +2301,22 @@ def mark_disturbance_confounded_with_state(prep, model, steps, alpha, min_gain) 
             continue
         j = e.joint
         m0 = Model(prep, [x for x in model.exts if x is not e])
-        solve = _model_solver(m0, j)
         chosen = []
-        N = comp.state_nuisance(prep, m0, j, solve=solve, without=DISTURBANCE_DRIVEN_BLOCKS, chosen=chosen)
-        if not N.shape[1]:
+        got = _state_tests(prep, m0, j, e.cols[j], alpha, min_gain, without=DISTURBANCE_DRIVEN_BLOCKS, chosen=chosen)
+        if got is None or not got[0].shape[1]:
             continue
-        C = e.cols[j]
-        t = comp._partial_test(prep, m0, j, N, C, alpha, min_gain, solve)
-        if t["significant"]:
-            continue
+        _, t, own, state = got
         c = st.competition
         had = comp.ambiguous_rivals(c) if c.get("ambiguous") else []
         laws = [STATE_BLOCK_EFFECTS[b] for b in chosen if b in STATE_BLOCK_EFFECTS]
         new = [x for x in dict.fromkeys(laws) if x not in had and x != e.effect]
         if not new:
             continue
-        zero = np.zeros((C.shape[0], 0))
-        own = comp._partial_test(prep, m0, j, zero, C, alpha, min_gain, solve)["rmse_reduction"]
-        state = comp._partial_test(prep, m0, j, zero, N, alpha, min_gain, solve)["rmse_reduction"]
         reason = (f"a free function of the state of joint {j} ({', '.join(chosen)}) explains it as well: given that "
                   f"function it lowers the held-out RMSE by {100 * t['rmse_reduction']:.2f} % (p = {t['p_value']:.2g}),"
                   f" not significantly, while alone it lowers it by {100 * own:.1f} % and the function alone by "
-                  f"{100 * state:.1f} %: a misfit of {' or '.join(new)} follows the motion, and a sinusoid in time fits "
-                  "part of it where the motion repeats")
+                  f"{100 * state:.1f} %: a misfit of {' or '.join(new)} follows the motion, and a sinusoid in time "
+                  "fits part of it where the motion repeats")
         info = {"blocks": list(chosen), "disturbance_given_state": comp._brief(t),
                 "heldout_rmse_reduction_alone": float(own), "state_heldout_rmse_reduction_alone": float(state)}
         if c.get("ambiguous"):
