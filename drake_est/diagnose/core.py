@@ -2291,13 +2291,28 @@ def mark_disturbance_confounded_with_state(prep, model, steps, alpha, min_gain) 
     state is quasi-periodic in time, at sums of the motion's frequencies, and a sinusoid at one of them stands in for
     the misfit as well as the misfit's law stands in for it (loop spec 9353: a position friction with a bump narrower
     than its kernels at 10 Hz, then a 0.39 Hz disturbance of 7.7 % held-out gain that given the state's position
-    friction and reversal blocks gains -1.8 %, the blocks alone 4.3 %).  The log cannot tell them apart.  Returns the
-    marked steps (their competition fields change in place)."""
+    friction and reversal blocks gains -1.8 %, the blocks alone 4.3 %).  The log cannot tell them apart.
+
+    The same mark (sixty-fourth round) for a friction law in time (:data:`TIME_LAW_PAIR`: an energy drift or an abrupt
+    change) on a joint where the final model also holds such a disturbance: the disturbance drives the acceleration,
+    so the state's function is the same one, without :data:`DISTURBANCE_DRIVEN_BLOCKS`.  Under slow moves the position
+    sweeps its range over minutes, and a change of the friction level in time fits a position friction's misfit (loop
+    spec 23681: a position friction and a 10 Hz disturbance at 10 Hz, the friction reported as an abrupt change of
+    29 % held-out gain alone, which given the state's position-friction block gains -4.4 %, the block alone 15 %).
+    Returns the marked steps (their competition fields change in place)."""
     marked = []
+    disturbed = {x.joint for x in model.exts if x.effect == "time_periodic_disturbance" and not x.shared}
     for st in steps:
         e = st.ext
-        if (e.effect != "time_periodic_disturbance" or e.shared or "at_motion_line_hz" in e.evidence
-                or not any(x is e for x in model.exts)):
+        if e.shared or not any(x is e for x in model.exts):
+            continue
+        if e.effect == "time_periodic_disturbance":
+            if "at_motion_line_hz" in e.evidence:
+                continue
+            what, tail = "a sinusoid in time", "fits part of it where the motion repeats"
+        elif e.effect in TIME_LAW_PAIR and e.joint in disturbed:
+            what, tail = "a law in time", "fits part of it where the moves sweep the positions slowly"
+        else:
             continue
         j = e.joint
         m0 = Model(prep, [x for x in model.exts if x is not e])
@@ -2315,10 +2330,11 @@ def mark_disturbance_confounded_with_state(prep, model, steps, alpha, min_gain) 
         reason = (f"a free function of the state of joint {j} ({', '.join(chosen)}) explains it as well: given that "
                   f"function it lowers the held-out RMSE by {100 * t['rmse_reduction']:.2f} % (p = {t['p_value']:.2g}),"
                   f" not significantly, while alone it lowers it by {100 * own:.1f} % and the function alone by "
-                  f"{100 * state:.1f} %: a misfit of {' or '.join(new)} follows the motion, and a sinusoid in time "
-                  "fits part of it where the motion repeats")
-        info = {"blocks": list(chosen), "disturbance_given_state": comp._brief(t),
+                  f"{100 * state:.1f} %: a misfit of {' or '.join(new)} follows the motion, and {what} {tail}")
+        info = {"blocks": list(chosen), "finding_given_state": comp._brief(t),
                 "heldout_rmse_reduction_alone": float(own), "state_heldout_rmse_reduction_alone": float(state)}
+        if e.effect == "time_periodic_disturbance":
+            info["disturbance_given_state"] = info["finding_given_state"]
         if c.get("ambiguous"):
             st.competition = {**c, "ambiguous_with": had + new, "confounded_with_state": info,
                               "reason": f"{c.get('reason', '')}; {reason}".lstrip("; ")}
