@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.optimize
 
 from drake_est.diagnose.parallel import pmap
 from drake_est.effects import EFFECTS, EXTRA_EFFECTS  # noqa: F401
@@ -220,6 +221,105 @@ def _ripple(jd, r, n_components=2, n_basis=None):
                     obj=pc)
     ext.spec["_pc"] = _Sub(pc, keep)
     return ext
+
+
+#: half-width, in frequency resolutions (one over the span of the training positions), of the joint search of a
+#: ripple's frequencies (:func:`ripple_refined`)
+RIPPLE_REFINE_WIDTH = 2.0
+#: grid steps per frequency resolution of that search, before a bounded 1-D polish
+RIPPLE_REFINE_STEPS = 4
+#: most coordinate sweeps of that search
+RIPPLE_REFINE_SWEEPS = 3
+
+
+def _ripple_regressors(ext):
+    """The :class:`~drake_est.identification.friction.extensions.RippleRegressors` of a ripple extension."""
+    from drake_est.identification.friction.extensions import RippleRegressors
+    ev = ext.spec["_pc"]
+    return RippleRegressors.from_components(ev.pc, ev.which) if hasattr(ev, "pc") else ev
+
+
+def ripple_refined(jd, r, ext, width=RIPPLE_REFINE_WIDTH, steps=RIPPLE_REFINE_STEPS, sweeps=RIPPLE_REFINE_SWEEPS):
+    """The ripple ``ext`` with its frequencies chosen jointly, by least squares on the training rows of the residual
+    ``r`` beside [sign(qd), qd] (the detector's base), each in turn given the others: a scan of +-``width``
+    resolutions (1 / the training positions' span) at ``steps`` points per resolution, then a bounded 1-D search,
+    for at most ``sweeps`` rounds (Ch. 10's periodogram maximized over all components at once, not greedily).  The
+    detector places each component on the residual of those found before it, with a velocity-dependent amplitude
+    that can bend a wrong frequency's phase back where the speeds follow the positions; the constant-amplitude
+    columns chosen after it keep that frequency, whose phase misfit drifts over the joint's range (loop spec 19128:
+    a ripple of 9.708 cycles/rad and its harmonic found at 9.76 and 18.79, training residual 480 against 29.8 at
+    the generator's frequencies, where a disturbance in time took the misfit).  Returns a new extension (evidence
+    ``jointly_refined_from_frequencies_per_arm_rad``) or ``ext`` when no frequency moves."""
+    from drake_est.identification.friction.extensions import RippleRegressors
+    from drake_est.spectral.lpv import LPVSpectrum
+    rr = _ripple_regressors(ext)
+    tr = jd.train
+    q, v = jd.q[jd.rows], jd.v[jd.rows]
+    qt, vt, rt = q[tr], v[tr], r[tr]
+    span = float(np.ptp(qt))
+    if span <= 0 or rr.freqs.size == 0:
+        return ext
+    res = 1.0 / span
+    f = rr.freqs.astype(float).copy()
+    B = np.column_stack([_sgn(vt), vt])
+    Phi = np.ones((qt.size, 1)) if rr.basis.n_basis == 1 else rr.basis(vt)     # the schedule basis, made once
+
+    def comp(ff):
+        """The columns of one component at ``ff`` cycles/rad (those of RippleRegressors, the basis made once)."""
+        arg = (qt * (2 * np.pi * ff))[:, None]
+        return LPVSpectrum._design_rows(Phi, np.cos(arg), np.sin(arg), None)
+
+    cols = [comp(ff) for ff in f]
+
+    def ess_given(Q, rk, ff):
+        """The training sum of squares the component at ``ff`` explains of ``rk`` beyond the columns ``Q`` spans
+        (orthonormal), by its Gram matrix (a few columns)."""
+        Z = comp(ff)
+        Z = Z - Q @ (Q.T @ Z)
+        b = Z.T @ rk
+        c = np.linalg.lstsq(Z.T @ Z, b, rcond=None)[0]
+        return float(b @ c)
+
+    for _ in range(sweeps):
+        moved = False
+        for k in range(f.size):
+            A = np.hstack([B] + [cols[i] for i in range(f.size) if i != k])
+            U, sv, _ = np.linalg.svd(A, full_matrices=False)
+            Q = U[:, sv > sv[0] * 1e-10]
+            rk = rt - Q @ (Q.T @ rt)
+            grid = f[k] + res * np.arange(-width * steps, width * steps + 1) / steps
+            others = np.delete(f, k)
+            grid = grid[(grid > 0) & np.all(np.abs(grid[:, None] - others[None, :]) >= 0.5 * res, axis=1)]
+            if not grid.size:
+                continue
+            e = np.array([ess_given(Q, rk, ff) for ff in grid])
+            best = float(grid[int(np.argmax(e))])
+            h = res / steps
+            opt = scipy.optimize.minimize_scalar(lambda ff: -ess_given(Q, rk, ff), bounds=(best - h, best + h),
+                                                 method="bounded", options={"xatol": 1e-7 * best})
+            top = float(e.max())
+            if -opt.fun > top:
+                best, top = float(opt.x), float(-opt.fun)
+            if top <= ess_given(Q, rk, f[k]) + 1e-12 * float(rk @ rk):
+                continue        # the current frequency is as good
+            if best != f[k]:
+                moved = moved or abs(best - f[k]) > 0.01 * res     # another sweep only after a move of note
+                f[k], cols[k] = best, comp(best)
+        if not moved:
+            break
+    if np.allclose(f, rr.freqs, rtol=0, atol=1e-6 * res):
+        return ext
+    new_rr = RippleRegressors(f, rr.basis_spec)
+    C = new_rr.regressors(q, v)
+    spec = {**ext.spec, "frequencies_per_arm_rad": [float(x) for x in f], "_pc": new_rr}
+    spec.pop("_which", None)
+    ev = {**ext.evidence, "frequency_per_arm_rad": float(f[0]), "frequency_per_arm_rev": float(f[0]) * 2 * np.pi,
+          "frequencies_per_arm_rad": [float(x) for x in f],
+          "jointly_refined_from_frequencies_per_arm_rad": [float(x) for x in rr.freqs]}
+    if jd.gear_ratio:
+        ev["frequency_per_motor_rev"] = float(f[0]) * 2 * np.pi / jd.gear_ratio
+    return Extension(ext.effect, ext.joint, {jd.joint: C}, [f"c{k}" for k in range(C.shape[1])], spec, ev,
+                     obj=ext.obj)
 
 
 def _not_aliased(pc, keep, q, v, r, min_frac=0.01, n_bins=4, need=3):
