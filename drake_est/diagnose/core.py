@@ -1443,7 +1443,7 @@ def _state_explains(prep, m0, j, C, alpha, min_gain, without=()):
     disturbance still in it).  ``(N, test given the function, own RMSE reduction, the function's)``, else None.  The
     checks of :func:`disturbance_explained_by_state` and :func:`time_law_explained_by_state`."""
     got = _state_tests(prep, m0, j, C, alpha, min_gain, without=without)
-    if got is None or not got[0].shape[1] or got[3] < got[2]:
+    if got is None or got[3] < got[2]:
         return None
     return got
 
@@ -1451,18 +1451,20 @@ def _state_explains(prep, m0, j, C, alpha, min_gain, without=()):
 def _state_tests(prep, m0, j, C, alpha, min_gain, without=(), chosen=None):
     """The finding with columns ``C`` against a free function of joint ``j``'s state
     (:func:`~drake_est.diagnose.competition.state_nuisance` on the model ``m0`` without it, ``without``: blocks left
-    out, ``chosen``: a list the joined blocks' names are appended to): None when ``C`` predicts the held-out residual
-    given the function (partial held-out F-test at ``alpha``, gain ``min_gain``), else ``(N, that test, C's own RMSE
-    reduction, the function's)`` (:func:`_state_explains`, :func:`mark_disturbance_confounded_with_state`)."""
+    out, ``chosen``: a list the joined blocks' names are appended to): None when no block joins the function (none
+    lowers the held-out error: nothing of the state to explain ``C``) or ``C`` predicts the held-out residual given the
+    function (partial held-out F-test at ``alpha``, gain ``min_gain``), else ``(N, that test, C's own RMSE reduction,
+    the function's)`` (:func:`_state_explains`, :func:`mark_disturbance_confounded_with_state`)."""
     solve = _model_solver(m0, j)
     N = comp.state_nuisance(prep, m0, j, solve=solve, without=without, chosen=chosen)
+    if not N.shape[1]:
+        return None
     t = comp._partial_test(prep, m0, j, N, C, alpha, min_gain, solve)
     if t["significant"]:
         return None
     zero = np.zeros((C.shape[0], 0))
     own = comp._partial_test(prep, m0, j, zero, C, alpha, min_gain, solve)["rmse_reduction"]
-    # no block joined (none lowers the held-out error): the function is nothing, and lowers nothing
-    state = comp._partial_test(prep, m0, j, zero, N, alpha, min_gain, solve)["rmse_reduction"] if N.shape[1] else 0.0
+    state = comp._partial_test(prep, m0, j, zero, N, alpha, min_gain, solve)["rmse_reduction"]
     return N, t, own, state
 
 
@@ -2322,7 +2324,7 @@ def mark_disturbance_confounded_with_state(prep, model, steps, alpha, min_gain) 
         m0 = Model(prep, [x for x in model.exts if x is not e])
         chosen = []
         got = _state_tests(prep, m0, j, e.cols[j], alpha, min_gain, without=DISTURBANCE_DRIVEN_BLOCKS, chosen=chosen)
-        if got is None or not got[0].shape[1]:
+        if got is None:
             continue
         _, t, own, state = got
         c = st.competition

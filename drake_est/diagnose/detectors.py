@@ -169,12 +169,11 @@ def ripple(jd, r, n_components=2, n_basis=None, fit_inner=None):
     otherwise fitted with many loosely determined amplitude coefficients and loses to a kernel expansion in q."""
     if fit_inner is None or n_basis is not None:
         return _ripple(jd, r, n_components, n_basis)
-    from drake_est.identification.friction.extensions import RippleRegressors
+    from drake_est.identification.friction.extensions import RippleRegressors, ripple_regressors
     ext = _ripple(jd, r, n_components, RIPPLE_BASIS)
     if ext is None:
         return None
-    lpv = ext.spec["_pc"]
-    rr = RippleRegressors.from_components(lpv.pc, lpv.which)
+    rr = ripple_regressors(ext.spec)
     const = RippleRegressors(rr.freqs, {**rr.basis_spec, "n_basis": 1, "sign_split": False})
     q, v = jd.q[jd.rows], jd.v[jd.rows]
     C1 = const.regressors(q, v)
@@ -232,13 +231,6 @@ RIPPLE_REFINE_STEPS = 4
 RIPPLE_REFINE_SWEEPS = 3
 
 
-def _ripple_regressors(ext):
-    """The :class:`~drake_est.identification.friction.extensions.RippleRegressors` of a ripple extension."""
-    from drake_est.identification.friction.extensions import RippleRegressors
-    ev = ext.spec["_pc"]
-    return RippleRegressors.from_components(ev.pc, ev.which) if hasattr(ev, "pc") else ev
-
-
 def ripple_refined(jd, r, ext, width=RIPPLE_REFINE_WIDTH, steps=RIPPLE_REFINE_STEPS, sweeps=RIPPLE_REFINE_SWEEPS):
     """The ripple ``ext`` with its frequencies chosen jointly, by least squares on the training rows of the residual
     ``r`` beside [sign(qd), qd] (the detector's base), each in turn given the others: a scan of +-``width``
@@ -250,9 +242,9 @@ def ripple_refined(jd, r, ext, width=RIPPLE_REFINE_WIDTH, steps=RIPPLE_REFINE_ST
     a ripple of 9.708 cycles/rad and its harmonic found at 9.76 and 18.79, training residual 480 against 29.8 at
     the generator's frequencies, where a disturbance in time took the misfit).  Returns a new extension (evidence
     ``jointly_refined_from_frequencies_per_arm_rad``) or ``ext`` when no frequency moves."""
-    from drake_est.identification.friction.extensions import RippleRegressors
+    from drake_est.identification.friction.extensions import RippleRegressors, ripple_regressors
     from drake_est.spectral.lpv import LPVSpectrum
-    rr = _ripple_regressors(ext)
+    rr = ripple_regressors(ext.spec)
     tr = jd.train
     q, v = jd.q[jd.rows], jd.v[jd.rows]
     qt, vt, rt = q[tr], v[tr], r[tr]

@@ -126,12 +126,18 @@ def columns_at(spec, q, v, t, others=None, E_unit=None, sign=None):
     raise DrakeEstError(f"no column evaluator for effect '{kind}'")
 
 
+def ripple_regressors(spec: dict) -> "RippleRegressors":
+    """The :class:`RippleRegressors` of a ripple's spec: its ``_pc``, the detector's selected components (an object
+    with ``pc`` and ``which``) or already a :class:`RippleRegressors`."""
+    ev = spec["_pc"]
+    return RippleRegressors.from_components(ev.pc, ev.which) if hasattr(ev, "pc") else ev
+
+
 def _public_spec(spec: dict) -> dict:
     """The JSON-able part of a spec (objects under keys starting with '_' dropped, ripple made serializable)."""
     out = {k: v for k, v in spec.items() if not k.startswith("_")}
     if spec.get("effect") == "motor_position_ripple" and "schedule_basis" not in out:
-        ev = spec["_pc"]
-        rr = RippleRegressors.from_components(ev.pc, ev.which) if hasattr(ev, "pc") else ev
+        rr = ripple_regressors(spec)
         out["frequencies_per_arm_rad"] = [float(f) for f in rr.freqs]
         out["schedule_basis"] = rr.basis_spec
     return out
