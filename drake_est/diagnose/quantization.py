@@ -133,3 +133,23 @@ def interval_fit(X, lo, hi, coef0=None, nonneg=(), sigma0=None, ridge=None, max_
     res = scipy.optimize.minimize(_nll_and_grad, np.concatenate([b0, [np.log(s0)]]), args=(Xs, lo, hi, rw),
                                   jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": max_iter})
     return res.x[:-1] / scale, float(np.exp(res.x[-1]))
+
+
+def interval_loglik_profiled(X, coef, lo, hi) -> tuple[float, float]:
+    """The log-likelihood of interval readings ``[lo, hi]`` under ``X @ coef`` at the noise level they favour most:
+    ``(max over sigma of sum interval_loglik, that sigma)``.  Two fitted models scored on the same held-out readings
+    each at its own best noise level are compared by their predictions alone, not by the noise level one of them was
+    given (one level for both favours the model it was fitted for).  The level is searched between a millionth of the
+    mean interval width and ten widths, in log-sigma (bounded Brent search)."""
+    X = np.asarray(X, float)
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    if X.shape[0] != lo.size or lo.size != hi.size or lo.size == 0:
+        raise ValueError(f"interval_loglik_profiled: X is {X.shape}, lo {lo.shape}, hi {hi.shape}: one row per interval")
+    width = float(np.mean(hi - lo))
+    if not width > 0:
+        raise ValueError("interval_loglik_profiled: every interval needs hi > lo")
+    mu = X @ np.asarray(coef, float)
+    lp = lambda ls: -float(np.sum(_log_prob_between((lo - mu) / np.exp(ls), (hi - mu) / np.exp(ls))))  # noqa: E731
+    res = scipy.optimize.minimize_scalar(lp, bounds=(np.log(1e-6 * width), np.log(10.0 * width)), method="bounded",
+                                         options={"xatol": 1e-4})
+    return -float(res.fun), float(np.exp(res.x))
