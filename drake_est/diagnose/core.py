@@ -1789,7 +1789,7 @@ def rounding_lr_bound(k: int, alpha: float = ALPHA) -> float:
     """The least held-out log-likelihood ratio [nats] of a finding with ``k`` columns on a joint whose torque a coarse
     ADC rounds (:func:`gain_within_rounding`): half the chi-square quantile of ``k`` degrees of freedom at ``1 -
     alpha``, the likelihood-ratio test at the significance level of the held-out F-test (:data:`ALPHA`) that the
-    rounding error, which is not noise, leaves without meaning there (7.6 nats for one column, 11.7 for four)."""
+    rounding error, which is not noise, leaves without meaning there (7.6 nats for one column, 11.8 for four)."""
     return 0.5 * float(scipy.stats.chi2.isf(alpha, max(int(k), 1)))
 
 
