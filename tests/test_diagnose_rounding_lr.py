@@ -90,3 +90,21 @@ def test_the_bound_is_a_parameter_of_the_check():
     e2, why = core.gain_within_rounding(d.prep, d.final_model, alpha=alpha)
     assert e2.effect == "position_dependent_load" and "within chance" in why["reason"]
     assert why["rounding_lr_bound"] > prof
+
+
+def test_the_docs_sample_numbers_are_its_json():
+    # the round's probe outside its rerun (benchmarks/probe_rounding_lr_sample.py, run with the base code): the docs'
+    # counts and smallest margin are read off its JSON
+    from pathlib import Path
+
+    from conftest import bench_module
+
+    root = Path(__file__).resolve().parents[1]
+    probe = bench_module("probe_rounding_lr_sample")
+    s = probe.summary(probe.read([str(root / "benchmarks" / "results" / "diagnose_rounding_lr_round66_sample.json")]))
+    assert s["logs"] == 400 and not s["decided_otherwise"]
+    ratio, k, effect, planted, gain, cols = s["smallest"][0]
+    doc = " ".join((root / "docs" / "readme" / "diagnose_testbench.md").read_text().split())
+    assert f"({s['calls']} calls of the check)" in doc
+    assert f"the smallest profiled gain was {ratio:.1f} times its bound" in doc
+    assert planted and f"at {gain:.1f} nats on {cols} columns" in doc
