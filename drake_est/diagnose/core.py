@@ -2482,6 +2482,66 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
     return fit0, nominal_val, nominal_joint, steps, fit, model, rejected, sigma
 
 
+def _ext_hit(found):
+    """``(effect, joint, why)`` of a check that returns ``(ext, why)`` (None stays None)."""
+    return None if found is None else (found[0].effect, found[0].joint, found[1])
+
+
+def _step_hit(found):
+    """``(effect, joint, why)`` of a check that returns ``(step, why)`` (None stays None)."""
+    return None if found is None else (found[0].ext.effect, found[0].ext.joint, found[1])
+
+
+def _final_checks(prep, out, model, fit, unexplained, alpha, min_gain) -> list:
+    """The checks of the final model's findings after the disturbances against the state, in the order they run:
+    ``(name, check)``, each check a thunk returning ``(effect, joint, why)`` of the first finding it sets aside, or
+    None.  Each may set findings aside at most :data:`MAX_NOT_CONFIRMED` times in a diagnosis
+    (:func:`_first_final_check`)."""
+    steps, sigma = out[3], out[7]
+    return [
+        # later findings against heavy-tailed noise: the gain must show on the absolute errors when a few samples
+        # hold it; then the only finding of a joint whose final residual still holds structure
+        ("few_samples", lambda: _step_hit(gain_in_few_samples(prep, steps, model, fit, sigma)
+                                          or sole_finding_gain_in_few_samples(prep, steps, model, fit, sigma,
+                                                                              unexplained))),
+        # findings on a joint with a coarse torque ADC, weighed by the likelihood of the quantized readings
+        ("rounding", lambda: _ext_hit(gain_within_rounding(prep, model, alpha=alpha))),
+        # later position laws against the earlier one of their joint at a finer resolution
+        ("finer_basis", lambda: _ext_hit(later_position_law_within_finer_basis(prep, model, min_gain))),
+        # position frictions beside a Stribeck law, against a free curve of the speed
+        ("speed_curve", lambda: _ext_hit(position_friction_within_speed_curve(prep, model, alpha, min_gain))),
+        # friction laws in time beside a Stribeck law, against a free curve of the speed
+        ("time_law_speed_curve", lambda: _ext_hit(time_law_within_speed_curve(prep, model, alpha, min_gain))),
+        # Stribeck laws beside an abrupt change, on both sides of the change
+        ("one_side_of_change", lambda: _ext_hit(stribeck_on_one_side_of_change(prep, model, sigma))),
+        # friction laws in time against a free function of the state
+        ("time_law_state", lambda: time_law_explained_by_state(prep, model, steps, alpha, min_gain)),
+        # a law in time alone on its joint, where the final residual holds structure in the state
+        ("sole_time_law_state", lambda: sole_time_law_explained_by_state(prep, model, unexplained, alpha, min_gain)),
+        # findings on a joint whose residual shows a delay between torque and position, against the delay's columns
+        ("delay", lambda: _ext_hit(finding_explained_by_delay(prep, model, unexplained, alpha, min_gain))),
+        # later position loads against a free acceleration column (an error of the inertia)
+        ("inertia", lambda: _ext_hit(finding_explained_by_inertia(prep, model, steps, alpha, min_gain))),
+        # findings on a joint whose residual depends on the acceleration, against a free linear response to it
+        # (an elastic gear)
+        ("linear_response", lambda: _ext_hit(finding_explained_by_linear_response(prep, model, unexplained, alpha,
+                                                                                  min_gain))),
+    ]
+
+
+def _first_final_check(checks, counts):
+    """The first hit ``(effect, joint, why)`` of ``checks`` (:func:`_final_checks`) whose count in ``counts`` is below
+    :data:`MAX_NOT_CONFIRMED` (that count is incremented), else None."""
+    for name, check in checks:
+        if counts[name] >= MAX_NOT_CONFIRMED:
+            continue
+        hit = check()
+        if hit is not None:
+            counts[name] += 1
+            return hit
+    return None
+
+
 def run_diagnosis(log, robot="generic", joints=None, seed: int = 0, max_findings: int = MAX_FINDINGS,
                   alpha: float = ALPHA, min_gain: float = MIN_GAIN, threads: int | None = None) -> DiagnosisResult:
     """Prepare the data, fit the nominal model, and extend it while held-out tests say so.
@@ -2539,17 +2599,8 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
     blocked, set_aside = set(), []
     time_alt_done, time_alt = False, None
     n_weak = 0
-    n_few = 0
-    n_adc = 0
-    n_fine = 0
-    n_curve = 0
-    n_time_curve = 0
-    n_side = 0
-    n_time_state = 0
-    n_sole_state = 0
-    n_delay = 0
-    n_inertia = 0
-    n_linear = 0
+    # how often each final-model check (_final_checks) has set a finding aside in this diagnosis
+    n_check = collections.Counter()
 
     def close_and_search(effect, joint, entry):
         """Close ``effect`` on ``joint`` (None: a shared one), record ``entry`` among the findings set aside and run
@@ -2641,109 +2692,14 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
             # the final model's disturbances off the motion's lines, each against a free function of the state; one
             # that it explains is set aside like a finding (its effect closed on its joint, so at most once a joint)
             state = disturbance_explained_by_state(prep, model, alpha, min_gain)
-            if state is None and n_few < MAX_NOT_CONFIRMED:
-                # the final model's later findings, each against heavy-tailed noise: its gain must show on the
-                # absolute errors when a few samples hold it
-                few = gain_in_few_samples(prep, out[3], model, fit, out[7])
-                if few is None:
-                    # ... and the only finding of a joint whose final residual still holds structure
-                    few = sole_finding_gain_in_few_samples(prep, out[3], model, fit, out[7], unexplained)
-                if few is not None:
-                    n_few += 1
-                    st, why = few
-                    out = close_and_search(st.ext.effect, st.ext.joint, {
-                        "effect": st.ext.effect, "joint": int(st.ext.joint), **why})
-                    continue
-            if state is None and n_adc < MAX_NOT_CONFIRMED:
-                # the final model's findings on a joint with a coarse torque ADC, each weighed by the likelihood of
-                # the quantized readings
-                adc = gain_within_rounding(prep, model, alpha=alpha)
-                if adc is not None:
-                    n_adc += 1
-                    e, why = adc
-                    out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
-                    continue
-            if state is None and n_fine < MAX_NOT_CONFIRMED:
-                # the final model's later position laws, each against the earlier one of its joint at a finer
-                # resolution
-                fine = later_position_law_within_finer_basis(prep, model, min_gain)
-                if fine is not None:
-                    n_fine += 1
-                    e, why = fine
-                    out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
-                    continue
-            if state is None and n_curve < MAX_NOT_CONFIRMED:
-                # the final model's position frictions beside a Stribeck law, each against a free curve of the speed
-                curve = position_friction_within_speed_curve(prep, model, alpha, min_gain)
-                if curve is not None:
-                    n_curve += 1
-                    e, why = curve
-                    out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
-                    continue
-            if state is None and n_time_curve < MAX_NOT_CONFIRMED:
-                # the final model's friction laws in time beside a Stribeck law, each against a free curve of the speed
-                tcurve = time_law_within_speed_curve(prep, model, alpha, min_gain)
-                if tcurve is not None:
-                    n_time_curve += 1
-                    e, why = tcurve
-                    out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
-                    continue
-            if state is None and n_side < MAX_NOT_CONFIRMED:
-                # the final model's Stribeck laws beside an abrupt change, each on both sides of the change
-                side = stribeck_on_one_side_of_change(prep, model, out[7])
-                if side is not None:
-                    n_side += 1
-                    e, why = side
-                    out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
-                    continue
-            if state is None and n_time_state < MAX_NOT_CONFIRMED:
-                # ... and against a free function of the state
-                tstate = time_law_explained_by_state(prep, model, out[3], alpha, min_gain)
-                if tstate is not None:
-                    n_time_state += 1
-                    effect, joint, why = tstate
-                    out = close_and_search(effect, joint, {"effect": effect, "joint": int(joint), **why})
-                    continue
-            if state is None and n_sole_state < MAX_NOT_CONFIRMED:
-                # ... and a law in time alone on its joint, where the final residual holds structure in the state
-                sole = sole_time_law_explained_by_state(prep, model, unexplained, alpha, min_gain)
-                if sole is not None:
-                    n_sole_state += 1
-                    effect, joint, why = sole
-                    out = close_and_search(effect, joint, {"effect": effect, "joint": int(joint), **why})
-                    continue
-            if state is None and n_delay < MAX_NOT_CONFIRMED:
-                # the final model's findings on a joint whose residual shows a delay between torque and position, each
-                # against the delay's columns
-                delayed = finding_explained_by_delay(prep, model, unexplained, alpha, min_gain)
-                if delayed is not None:
-                    n_delay += 1
-                    e, why = delayed
-                    out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
-                    continue
-            if state is None and n_inertia < MAX_NOT_CONFIRMED:
-                # ... and the later position loads against a free acceleration column (an error of the inertia)
-                inert = finding_explained_by_inertia(prep, model, out[3], alpha, min_gain)
-                if inert is not None:
-                    n_inertia += 1
-                    e, why = inert
-                    out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
-                    continue
-            if state is None and n_linear < MAX_NOT_CONFIRMED:
-                # ... and the findings on a joint whose residual depends on the acceleration against a free linear
-                # response to it (an elastic gear)
-                linear = finding_explained_by_linear_response(prep, model, unexplained, alpha, min_gain)
-                if linear is not None:
-                    n_linear += 1
-                    e, why = linear
-                    out = close_and_search(e.effect, e.joint, {"effect": e.effect, "joint": int(e.joint), **why})
-                    continue
-            if state is None:
+            hit = state if state is not None else _first_final_check(
+                _final_checks(prep, out, model, fit, unexplained, alpha, min_gain), n_check)
+            if hit is None:
                 mark_level_within_rival_pair(prep, model, out[3], unexplained, out[7])
                 mark_not_separated_under_misfit(out[3], unexplained)
                 mark_disturbance_confounded_with_state(prep, model, out[3], alpha, min_gain)
                 break
-            effect, joint, why = state
+            effect, joint, why = hit
             out = close_and_search(effect, joint, {"effect": effect, "joint": int(joint), **why})
             continue
         n_weak += 1
