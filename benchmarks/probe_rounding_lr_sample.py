@@ -20,7 +20,6 @@ import sys
 
 import numpy as np
 import scipy.optimize
-import scipy.stats
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
@@ -99,8 +98,11 @@ def read(paths):
 
 
 def summary(logs, alpha=1e-4):
-    """{logs, calls, decided_otherwise: [...], smallest: [(ratio, k, effect, planted, gain_hopt, columns)...]}."""
-    bound = lambda k: 0.5 * float(scipy.stats.chi2.isf(alpha, max(int(k), 1)))  # noqa: E731
+    """{logs, calls, decided_otherwise: [...], smallest: [(ratio, k, effect, planted, gain_hopt, columns)...]}: the
+    records against core.rounding_lr_bound at ``alpha`` (the diagnosis' ALPHA)."""
+    from drake_est.diagnose.core import rounding_lr_bound
+
+    bound = lambda k: rounding_lr_bound(k, alpha)  # noqa: E731
     other, ratios, calls = [], [], 0
     for L in logs:
         for r in L["rec"]:

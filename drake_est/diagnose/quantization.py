@@ -145,11 +145,12 @@ def interval_loglik_profiled(X, coef, lo, hi) -> tuple[float, float]:
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     if X.shape[0] != lo.size or lo.size != hi.size or lo.size == 0:
         raise ValueError(f"interval_loglik_profiled: X is {X.shape}, lo {lo.shape}, hi {hi.shape}: one row per interval")
-    width = float(np.mean(hi - lo))
-    if not width > 0:
+    if not np.all(hi > lo):
         raise ValueError("interval_loglik_profiled: every interval needs hi > lo")
-    mu = X @ np.asarray(coef, float)
-    lp = lambda ls: -float(np.sum(_log_prob_between((lo - mu) / np.exp(ls), (hi - mu) / np.exp(ls))))  # noqa: E731
-    res = scipy.optimize.minimize_scalar(lp, bounds=(np.log(1e-6 * width), np.log(10.0 * width)), method="bounded",
+    width = float(np.mean(hi - lo))
+    # the prediction once, as the single column of interval_loglik's design (the search only moves sigma)
+    mu = (X @ np.asarray(coef, float))[:, None]
+    res = scipy.optimize.minimize_scalar(lambda ls: -float(np.sum(interval_loglik(mu, [1.0], np.exp(ls), lo, hi))),
+                                         bounds=(np.log(1e-6 * width), np.log(10.0 * width)), method="bounded",
                                          options={"xatol": 1e-4})
     return -float(res.fun), float(np.exp(res.x))
