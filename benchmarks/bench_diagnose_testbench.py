@@ -282,6 +282,18 @@ def _got(d):
     return got or ("unexplained" if d["unexplained"] else "none")
 
 
+def untestable_effects(d) -> list:
+    """The vocabulary effects that the report's ``next_experiment`` entries declare untestable in this log ("stribeck
+    untestable: ...", "stribeck with vs below ... untestable: ...", "asymmetric_coulomb untestable: ..."): the
+    report names the experiment that would test them (issue 16 item 4)."""
+    out = set()
+    for e in d.get("next_experiment") or []:
+        head = str(e.get("reason", "")).split(":")[0].split()
+        if head and "untestable" in head and head[0] in set(SINGLE):
+            out.add(head[0])
+    return sorted(out)
+
+
 def _row(k, family, robot, spec, log, d, dt, not_visible=None):
     nv = dict(not_visible or {})
     j = judge(spec, d, optional=nv)
@@ -290,7 +302,9 @@ def _row(k, family, robot, spec, log, d, dt, not_visible=None):
          "samples": int(log.n_samples), "sample_rate": spec.get("sample_rate"), "duration": spec.get("duration"),
          "noise": spec.get("noise", "gaussian"), "noise_std": spec.get("noise_std"),
          "unexplained": [u.get("variable") for u in d["unexplained"]],
-         "set_aside": [x.get("effect") for x in d.get("set_aside") or []], **j}
+         "set_aside": [x.get("effect") for x in d.get("set_aside") or []],
+         # rows since the sixty-seventh round: what the report declares untestable, with the experiment to run
+         "untestable": untestable_effects(d), **j}
     # the inertia backfit's move, per joint where it moved J ([J identified by prepare, J after the backfit]; rows
     # since the thirty-sixth round): a change to core.backfit_inertia can only touch the logs that record one
     params = (d.get("nominal") or {}).get("parameters") or {}

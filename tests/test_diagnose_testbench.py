@@ -256,6 +256,30 @@ def test_summarize_counts_per_family():
     assert table[-1].startswith("| all | 4 | 3 | 1 | 1 |")
 
 
+def test_untestable_effects_reads_the_reports_entries():
+    """untestable_effects: the vocabulary effects whose next_experiment entry says "untestable", nothing from
+    entries about ambiguities, one speed level or the residual tests."""
+    mod = bench_module("bench_diagnose_testbench")
+    d = {"next_experiment": [
+        {"reason": "stribeck with vs below 0.0123 per s untestable: the slowest selected speed is 0.0246 per s"},
+        {"reason": "asymmetric_coulomb untestable: joint 1 holds 3 of its 400 selected training samples"},
+        {"reason": "ambiguous between stribeck and abrupt_change"},
+        {"reason": "one speed only: position-periodic and time-periodic cannot be told apart"},
+        {"reason": "structure outside the vocabulary (a delay ...) is only partly testable at 10 Hz"}]}
+    assert mod.untestable_effects(d) == ["asymmetric_coulomb", "stribeck"]
+    assert mod.untestable_effects({"next_experiment": []}) == []
+
+
+def test_row_of_a_missed_stribeck_law_at_10hz_records_it_untestable():
+    """Closed-loop spec 26730, Stribeck at 10 Hz (a multisine: the selection's speed bound is half the top speed):
+    missed, and its row records that the report declares Stribeck untestable (and names the experiment)."""
+    mod = bench_module("bench_diagnose_testbench")
+    rows = []
+    mod._run_family("loop", [mod.loop_cases(26731)[26730]], rows, 26730)
+    assert rows[0]["truth"] == "stribeck" and rows[0]["missed"] == ["stribeck"] and not rows[0]["wrong"]
+    assert rows[0]["untestable"] == ["stribeck"]
+
+
 def test_rerun_kept_selects_rows_and_lists_what_differs(tmp_path):
     """--rerun-kept: kept_jsons skips earlier rounds' copies, kept_rows_naming selects the rows whose truth or
     finding names the effect, and row_differences lists a changed outcome (unexplained compared as a set), not an
