@@ -186,6 +186,27 @@ def coupled_joints(j, moving, meta=None) -> list:
 V_MIN_FRACTION = 0.05
 
 
+#: (9.9) order of the differences the velocity's jitter is read from (:func:`velocity_jitter`): 1, the
+#: sample-to-sample change.  2 (second differences, blind to a steady acceleration, so that at 10 Hz the speed bound
+#: falls from up to half the top speed to 5 % of it) was tried in the twenty-second and sixty-seventh rounds and not
+#: kept: it finds most Stribeck laws missed at 10 Hz but names causes that were not planted
+#: (``benchmarks/probe_jitter_second_differences.py``).
+V_JITTER_DIFFERENCE_ORDER = 1
+
+
+def velocity_jitter(v, order: int = 1) -> float:
+    """Robust standard deviation of the velocity's sample-to-sample noise: the median absolute deviation of its
+    ``order``-th differences (1 or 2), scaled to the noise level of white noise (which the differences amplify by
+    sqrt(2) and sqrt(6)).  A smooth motion adds its own change between samples: its acceleration times the sample
+    period to the first differences, its change of acceleration times the period squared to the second."""
+    if order not in (1, 2):
+        raise ValueError(f"velocity_jitter: order must be 1 or 2, got {order!r}")
+    d = np.diff(v, order)
+    if not d.size:
+        return 0.0
+    return 1.4826 * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2.0 if order == 1 else 6.0)
+
+
 def select_rows(v, a, t):
     """Data selection (9.9): |v| clearly above zero and |a| small. Returns (mask, counts, thresholds)."""
     av = np.abs(v)
@@ -195,8 +216,7 @@ def select_rows(v, a, t):
     # which a smooth trajectory does not have).  2 % was tried: it lets a Stribeck hump at vs = 5 % of the top
     # speed be seen, but also the first seconds after each reversal at the slowest speeds, where a backlash or
     # presliding transient was then named as a Stribeck law, a load and a disturbance periodic in time.
-    dv = np.diff(v)
-    v_noise = 1.4826 * float(np.median(np.abs(dv - np.median(dv)))) / np.sqrt(2.0) if dv.size else 0.0
+    v_noise = velocity_jitter(v, V_JITTER_DIFFERENCE_ORDER)
     v_min = max(V_MIN_FRACTION * vref, 10.0 * v_noise)
     moving = av > v_min
     aa = np.abs(a)

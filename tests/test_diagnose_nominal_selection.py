@@ -1,0 +1,43 @@
+"""The velocity jitter behind the data selection's speed bound (9.9): nominal.velocity_jitter."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drake_est.diagnose import nominal
+
+
+def test_velocity_jitter_of_white_noise_is_its_level_for_both_orders():
+    rng = np.random.default_rng(0)
+    v = 0.02 * rng.standard_normal(20000)
+    assert nominal.velocity_jitter(v, 1) == pytest.approx(0.02, rel=0.05)
+    assert nominal.velocity_jitter(v, 2) == pytest.approx(0.02, rel=0.05)
+
+
+def test_second_differences_do_not_see_a_smooth_motion_sampled_at_10hz():
+    """A multisine velocity sampled at 10 Hz without noise: its first differences are the motion (the speed bound
+    then sits near half the top speed, as in the Stribeck misses at 10 Hz); its second differences are far smaller."""
+    t = np.arange(0.0, 120.0, 0.1)
+    v = 0.5 * np.sin(2 * np.pi * 0.2 * t) + 0.3 * np.sin(2 * np.pi * 0.45 * t + 1.0)
+    j1, j2 = nominal.velocity_jitter(v, 1), nominal.velocity_jitter(v, 2)
+    assert 10 * j1 > 0.2 * np.quantile(np.abs(v), 0.95)
+    assert j2 < 0.25 * j1
+
+
+def test_selection_uses_the_configured_order_and_default_is_first_differences(monkeypatch):
+    t = np.arange(0.0, 120.0, 0.1)
+    v = 0.5 * np.sin(2 * np.pi * 0.2 * t) + 0.3 * np.sin(2 * np.pi * 0.45 * t + 1.0)
+    a = np.gradient(v, t)
+    vref = float(np.quantile(np.abs(v), 0.95))
+    assert nominal.V_JITTER_DIFFERENCE_ORDER == 1
+    _, _, thr1 = nominal.select_rows(v, a, t)
+    assert thr1["v_min"] == pytest.approx(10 * nominal.velocity_jitter(v, 1))
+    monkeypatch.setattr(nominal, "V_JITTER_DIFFERENCE_ORDER", 2)
+    _, _, thr2 = nominal.select_rows(v, a, t)
+    assert thr2["v_min"] == pytest.approx(max(nominal.V_MIN_FRACTION * vref, 10 * nominal.velocity_jitter(v, 2)))
+    assert thr2["v_min"] < 0.5 * thr1["v_min"]
+
+
+def test_velocity_jitter_refuses_other_orders():
+    with pytest.raises(ValueError, match="order must be 1 or 2"):
+        nominal.velocity_jitter(np.zeros(10), 3)
