@@ -12,6 +12,7 @@ judge's ``wrong``), a null log that gains an entry.
     python benchmarks/probe_jitter_second_differences.py --keys --sample-rate 10 --above 2950 --below 26799 --seed 67 > ks.txt
     OPENBLAS_NUM_THREADS=1 python benchmarks/probe_jitter_second_differences.py OUT.json $(cat ks.txt)
     python benchmarks/probe_jitter_second_differences.py --summary A.json,B.json
+    python benchmarks/probe_jitter_second_differences.py --table-row A.json B.json
 
 Writes OUT.json every ten logs (a long run can be stopped; ``examined`` says how far it got).  The committed JSONs
 of the round: ``diagnose_jitter_second_differences_round67_*.json`` (docs/readme/diagnose_testbench.md).
@@ -107,6 +108,19 @@ def summary(paths) -> dict:
     return out
 
 
+TABLE_CLASSES = ("mended", "correct before, not now", "wrong name", "null log, entry gained",
+                 "other change of the named effects", "same verdict", "null log, same")
+
+
+def table_row(name: str, s: dict) -> str:
+    """The docs' table row of one of the round's JSONs (``name``) from its ``summary``: logs examined, bound moved,
+    then the rows per class of ``TABLE_CLASSES`` and the specs that gained a wrong name."""
+    c = s["classes"]
+    wrong = ", ".join(str(x["k"]) for x in s["cases"].get("wrong name", [])) or "none"
+    cells = [f"`{name}`", str(s["examined"]), str(s["touched"])] + [str(c.get(k, 0)) for k in TABLE_CLASSES]
+    return "| " + " | ".join(cells + [wrong]) + " |"
+
+
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "--keys":
@@ -119,6 +133,13 @@ def main(argv=None):
         ap.add_argument("--seed", type=int, default=67)
         a = ap.parse_args(argv)
         print(" ".join(str(k) for k in sample_keys(a.sample_rate, a.above, a.seed, a.below)))
+        return
+    if argv and argv[0] == "--table-row":
+        if len(argv) < 2:
+            raise SystemExit("--table-row needs one or more JSON files")
+        from pathlib import Path
+        for p in argv[1:]:
+            print(table_row(Path(p).name, summary([p])))
         return
     if argv and argv[0] == "--summary":
         if len(argv) < 2:

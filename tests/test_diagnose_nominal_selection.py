@@ -41,3 +41,50 @@ def test_selection_uses_the_configured_order_and_default_is_first_differences(mo
 def test_velocity_jitter_refuses_other_orders():
     with pytest.raises(ValueError, match="order must be 1 or 2"):
         nominal.velocity_jitter(np.zeros(10), 3)
+
+
+def _probe():
+    from conftest import bench_module
+    return bench_module("probe_jitter_second_differences")
+
+
+def test_probe_classifies_a_row_against_its_kept_row():
+    probe = _probe()
+    kept = {"got": "none", "correct": False, "wrong": [], "missed": ["stribeck"], "truth": "stribeck"}
+    row = {"got": "stribeck", "correct": True, "wrong": [], "truth": "stribeck", "kept_row": kept}
+    assert probe.classify(row) == "mended"
+    row = dict(row, got="stribeck+position_dependent_load", correct=False, wrong=["position_dependent_load"])
+    assert probe.classify(row) == "wrong name"
+    null_kept = {"got": "none", "correct": True, "wrong": [], "missed": [], "truth": "none"}
+    assert probe.classify({"got": "unexplained", "correct": True, "wrong": [], "truth": "none",
+                           "kept_row": null_kept}) == "null log, entry gained"
+
+
+def test_sixty_seventh_round_table_is_its_jsons():
+    """docs/readme/diagnose_testbench.md's table of the sixty-seventh round holds each JSON's row as the probe's
+    --table-row prints it, and the text names the specs that gained a wrong name."""
+    import json
+    from pathlib import Path
+
+    probe = _probe()
+    root = Path(__file__).resolve().parents[1]
+    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    flat = " ".join(doc.split())
+    files = sorted((root / "benchmarks" / "results").glob("diagnose_jitter_second_differences_round67_*.json"))
+    assert len(files) == 5
+    wrong = []
+    for f in files:
+        d = json.loads(f.read_text())
+        assert d["jitter_difference_order"] == 2 and d["examined"] == len(d["keys_examined"])
+        s = probe.summary([str(f)])
+        assert probe.table_row(f.name, s) in doc
+        wrong += [x["k"] for x in s["cases"].get("wrong name", [])]
+    assert sorted(wrong) == [596, 670, 8461, 17589]
+    assert "670, 8461 and 17589 at 10 Hz and 596 at 50 Hz gain a wrong name" in " ".join(
+        (root / "docs" / "readme" / "_roadmap.md").read_text().split())
+    m = json.loads((root / "benchmarks" / "results" /
+                    "diagnose_jitter_second_differences_round67_missed_stribeck_10hz.json").read_text())
+    s = probe.summary([str(root / "benchmarks" / "results" /
+                           "diagnose_jitter_second_differences_round67_missed_stribeck_10hz.json")])
+    assert f"of the {s['touched']} missed-Stribeck logs whose bound moves, {s['mended_missed_stribeck']} now" in flat
+    assert len(m["keys_examined"]) == 211 and "211 kept closed-loop rows at 10 Hz miss" in flat
