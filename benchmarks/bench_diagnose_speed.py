@@ -39,6 +39,15 @@ LOOP_EFFECTS = (("position_dependent_friction", "time_periodic_disturbance"), ("
                 ("motor_position_ripple", "stribeck"))
 
 
+def loop_log(seed: int):
+    """The closed-loop log of the benchmark with this seed: 45,000 samples at 100 Hz, the pair of effects
+    ``LOOP_EFFECTS[seed % 5]`` at full size. Returns (effects, log)."""
+    from drake_est.diagnose.testbench_loop import generate
+    effs = LOOP_EFFECTS[seed % len(LOOP_EFFECTS)]
+    lg, _ = generate({e: 1.0 for e in effs}, seed=seed, duration=N_SAMPLES / 100.0, sample_rate=100.0)
+    return effs, lg
+
+
 def readme_table(out, source="diagnose_speed.json") -> list:
     """The README table lines for a result of :func:`main` (tests/test_diagnose_speed_readme.py checks them)."""
     return [f"| logs (`{source}`, load average {out['load_average_1min']:.1f} on {out['cpu_count']} cores) | wall | CPU "
@@ -148,11 +157,9 @@ def main(argv=None):
         logs.append((f"testbench {eff or 'none'} seed {s}", lg, "generic"))
     lg, _ = synthesize("motor_position_ripple", seed=45, duration=451.0, sample_rate=100.0)
     irb = Log(t=lg.t[:N_SAMPLES], q=lg.q[:N_SAMPLES], tau=lg.tau[:N_SAMPLES], joints=lg.joints)
-    from drake_est.diagnose.testbench_loop import generate as loop_generate
     loop = []
     for s in range(args.loop):
-        effs = LOOP_EFFECTS[s % len(LOOP_EFFECTS)]
-        lg, _ = loop_generate({e: 1.0 for e in effs}, seed=s, duration=N_SAMPLES / 100.0, sample_rate=100.0)
+        effs, lg = loop_log(s)
         loop.append((f"loop {'+'.join(effs)} seed {s}", lg, "generic"))
     rows = []
     for name, lg, robot in logs + [("synth irb140 ripple", irb, "irb140")] + loop:

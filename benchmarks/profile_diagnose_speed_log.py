@@ -2,7 +2,7 @@
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/profile_diagnose_speed_log.py [SEED]   # default 4, the slowest
 
-Generates the log as ``bench_diagnose_speed.py`` does (45,000 samples at 100 Hz, the pair of effects of that seed),
+Generates the log with ``bench_diagnose_speed.loop_log`` (45,000 samples at 100 Hz, the pair of effects of that seed),
 diagnoses it without re-simulation on one thread and prints the named effects and the 40 most costly calls, by
 cumulative and by own time.
 """
@@ -25,9 +25,7 @@ def main(argv=None):
     except ValueError:
         raise SystemExit(f"expected a seed (an integer), got {argv[0]!r}")
     from drake_est.diagnose import diagnose
-    from drake_est.diagnose.testbench_loop import generate
-    effs = S.LOOP_EFFECTS[seed % len(S.LOOP_EFFECTS)]
-    lg, _ = generate({e: 1.0 for e in effs}, seed=seed, duration=S.N_SAMPLES / 100.0, sample_rate=100.0)
+    effs, lg = S.loop_log(seed)
     pr = cProfile.Profile()
     pr.enable()
     rep = diagnose(lg, robot="generic", seed=0, simulate=False, threads=1)
