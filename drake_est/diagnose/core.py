@@ -527,7 +527,9 @@ def _competition(ext, tst, results, prep=None) -> dict:
            "runner_up_rmse_reduction": None if t2.get("rmse_reduction") is None else float(t2["rmse_reduction"])}
     close, below_step, below_min_gain = [], False, {}
     for e, t in rivals:
-        if t.get("below_quantization_step"):
+        if t.get("below_quantization_step") or (t.get("beyond_rounding_by_likelihood") and not t["significant"]):
+            # (a law in time that the ADC guard held back and the readings' likelihood let through,
+            # :func:`time_law_beyond_rounding`, but a later test did not: a rival as the guard left it)
             # a rival held back only by the quantization guard (its change of the prediction stays within half an
             # ADC step, _above_quantization) is still an explanation of the same residual: it stands beside the
             # winner when it is simpler and the winner does not beat it by the same guard (judged from the rival's
