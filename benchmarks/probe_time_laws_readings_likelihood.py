@@ -13,7 +13,10 @@ diagnosis: the rule changes nothing else).
     OPENBLAS_NUM_THREADS=1 python benchmarks/probe_time_laws_readings_likelihood.py OUT.json $(cat ks.txt)
     python benchmarks/probe_time_laws_readings_likelihood.py --table-row A.json B.json
 
-``--keys`` options: ``--noise`` (quantized), ``--missed EFFECT`` (only kept rows missing it), ``--truth none|oov|any``,
+    python benchmarks/probe_time_laws_readings_likelihood.py --keys --family testbench > kt.txt
+    OPENBLAS_NUM_THREADS=1 python benchmarks/probe_time_laws_readings_likelihood.py --family=testbench OUT.json $(cat kt.txt)
+
+``--keys`` options: ``--family`` (loop, testbench), ``--noise`` (quantized), ``--missed EFFECT`` (only kept rows missing it), ``--truth none|oov|any``,
 ``--sample-rate HZ``, ``--seed`` (a seeded random order).  Writes OUT.json every ten logs (``examined`` says how far
 a stopped run got).  Rows are sorted as in the sixty-seventh round's probe (``probe_jitter_second_differences``).
 """
@@ -27,18 +30,18 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_diagnose_testbench as B  # noqa: E402
-from probe_jitter_second_differences import summary, table_row  # noqa: E402,F401  (re-exported for the docs test)
+from probe_jitter_second_differences import classify, summary, table_row  # noqa: E402,F401  (re-exported for the docs test)
 
 OOV = ("backlash", "compliance", "sensor_delay")
 
 
 def sample_keys(noise: str | None = "quantized", missed: str | None = None, truth: str = "any",
-                sample_rate: float | None = None, seed: int = 68) -> list:
-    """Kept closed-loop logs with this ``noise``, ``missed`` effect, ``truth`` class (``none``: null logs, ``oov``: out
+                sample_rate: float | None = None, seed: int = 68, family: str = "loop") -> list:
+    """Kept logs of ``family`` with this ``noise``, ``missed`` effect, ``truth`` class (``none``: null logs, ``oov``: out
     of the vocabulary, ``any``) and ``sample_rate`` [Hz], in a seeded random order."""
     ks = []
     for (f, _, k), (_, r) in B.kept_rows_naming("any", sample_rate=sample_rate).items():
-        if f != "loop" or (noise is not None and r["noise"] != noise):
+        if f != family or (noise is not None and r.get("noise", "gaussian") != noise):
             continue
         if missed is not None and missed not in r["missed"]:
             continue
@@ -51,12 +54,17 @@ def sample_keys(noise: str | None = "quantized", missed: str | None = None, trut
     return random.Random(seed).sample(ks, len(ks))
 
 
-def run(out_path: str, keys) -> dict:
+def run(out_path: str, keys, family: str = "loop") -> dict:
+    """Diagnose the kept logs ``keys`` of ``family`` (``loop``: the closed-loop generator; ``testbench``: the
+    open-loop one) with the rule on; store the rows of the logs where it let a candidate through."""
     from drake_est.diagnose import core
-    kept = {k: v for (f, _, k), v in B.kept_rows_naming("any").items() if f == "loop"}
+    if family not in ("loop", "testbench"):
+        raise SystemExit(f"--family must be loop or testbench, got {family!r}")
+    kept = {k: v for (f, _, k), v in B.kept_rows_naming("any").items() if f == family}
     missing = [k for k in keys if k not in kept]
     if missing:
-        raise SystemExit(f"no kept closed-loop row for k = {missing[0]} ({len(missing)} such)")
+        raise SystemExit(f"no kept {family} row for k = {missing[0]} ({len(missing)} such)")
+    make = B.loop_cases if family == "loop" else B.cases
     core.TIME_LAWS_BY_READINGS_LIKELIHOOD = True
     rule = core.time_law_beyond_rounding
     kept_by_rule = []
@@ -70,14 +78,14 @@ def run(out_path: str, keys) -> dict:
         return got
 
     core.time_law_beyond_rounding = counted
-    res = {"rule": "TIME_LAWS_BY_READINGS_LIKELIHOOD", "examined": 0, "keys_examined": [], "touched": [], "rows": [],
+    res = {"rule": "TIME_LAWS_BY_READINGS_LIKELIHOOD", "family": family, "examined": 0, "keys_examined": [], "touched": [], "rows": [],
            "refused": []}
     try:
         for m, k in enumerate(keys):
-            spec = B.loop_cases(k + 1)[k]
+            spec = make(k + 1)[k]
             kept_by_rule.clear()
             rows = []
-            B._run_family("loop", [spec], rows, k, res["refused"])
+            B._run_family(family, [spec], rows, k, res["refused"])
             res["examined"] += 1
             res["keys_examined"].append(k)
             if kept_by_rule:
@@ -105,9 +113,10 @@ def main(argv=None):
         ap.add_argument("--truth", choices=("any", "none", "oov"), default="any")
         ap.add_argument("--sample-rate", type=float, default=None)
         ap.add_argument("--seed", type=int, default=68)
+        ap.add_argument("--family", choices=("loop", "testbench"), default="loop")
         a = ap.parse_args(argv)
         noise = None if a.noise == "any" else a.noise
-        print(" ".join(str(k) for k in sample_keys(noise, a.missed, a.truth, a.sample_rate, a.seed)))
+        print(" ".join(str(k) for k in sample_keys(noise, a.missed, a.truth, a.sample_rate, a.seed, a.family)))
         return
     if argv and argv[0] == "--table-row":
         if len(argv) < 2:
@@ -121,13 +130,16 @@ def main(argv=None):
             raise SystemExit("--summary needs a comma-separated list of JSON files")
         print(json.dumps(summary(argv[1].split(",")), indent=1))
         return
+    family = "loop"
+    if argv and argv[0].startswith("--family="):
+        family = argv.pop(0).split("=", 1)[1]
     if len(argv) < 2:
         raise SystemExit(__doc__)
     try:
         keys = [int(x) for x in argv[1:]]
     except ValueError as e:
-        raise SystemExit(f"expected closed-loop spec numbers after OUT.json: {e}")
-    res = run(argv[0], keys)
+        raise SystemExit(f"expected spec numbers after OUT.json: {e}")
+    res = run(argv[0], keys, family)
     print(f"examined {res['examined']}, rule fired in {len(res['touched'])}, diagnosed {len(res['rows'])}")
 
 

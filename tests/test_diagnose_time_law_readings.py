@@ -61,3 +61,26 @@ def test_a_change_the_blocks_do_not_separate_from_the_drift_is_ambiguous(monkeyp
     (f,) = d["findings"]
     assert f["effect"] == "abrupt_change" and f["status"] == "ambiguous"
     assert f["competition"]["ambiguous_with"] == ["energy_dependent_friction"]
+
+
+def test_the_rule_is_off_and_its_table_is_its_jsons():
+    """The round was not kept (three wrong names gained): the switch stays off, and the docs' table holds each probe
+    JSON's row as the probe's --table-row prints it."""
+    import json
+    from pathlib import Path
+
+    from conftest import bench_module
+    assert core.TIME_LAWS_BY_READINGS_LIKELIHOOD is False
+    probe = bench_module("probe_time_laws_readings_likelihood")
+    root = Path(__file__).resolve().parents[1]
+    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    files = sorted((root / "benchmarks" / "results").glob("diagnose_time_laws_readings_round68_lane_*.json"))
+    assert len(files) == 2
+    wrong = []
+    for f in files:
+        d = json.loads(f.read_text())
+        assert d["examined"] == len(d["keys_examined"])
+        s = probe.summary([str(f)])
+        assert probe.table_row(f.name, s) in doc
+        wrong += [x["k"] for x in s["cases"].get("wrong name", [])]
+    assert sorted(wrong) == [11438, 15992, 21435]
