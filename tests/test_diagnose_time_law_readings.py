@@ -27,8 +27,8 @@ def drift_103():
 
 
 @pytest.mark.long
-def test_the_guard_alone_holds_the_drift_back(drift_103):
-    assert not core.TIME_LAWS_BY_READINGS_LIKELIHOOD
+def test_the_guard_alone_holds_the_drift_back(drift_103, monkeypatch):
+    monkeypatch.setattr(core, "TIME_LAWS_BY_READINGS_LIKELIHOOD", False)
     d = diagnose(drift_103, robot="generic", seed=0, simulate=False).to_dict()
     assert d["findings"] == []
     drift = [n for n in d["not_found"] if n["effect"] == "energy_dependent_friction"][0]
@@ -63,14 +63,13 @@ def test_a_change_the_blocks_do_not_separate_from_the_drift_is_ambiguous(monkeyp
     assert f["competition"]["ambiguous_with"] == ["energy_dependent_friction"]
 
 
-def test_the_rule_is_off_and_its_table_is_its_jsons():
-    """The round was not kept (three wrong names gained): the switch stays off, and the docs' table holds each probe
-    JSON's row as the probe's --table-row prints it."""
+def test_the_sixty_eighth_rounds_table_is_its_jsons():
+    """The round was not kept (three wrong names gained): the docs' table holds each probe JSON's row as the probe's
+    --table-row prints it."""
     import json
     from pathlib import Path
 
     from conftest import bench_module
-    assert core.TIME_LAWS_BY_READINGS_LIKELIHOOD is False
     probe = bench_module("probe_time_laws_readings_likelihood")
     root = Path(__file__).resolve().parents[1]
     doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
@@ -125,3 +124,30 @@ def test_a_drift_gains_no_change_beside_it(monkeypatch):
     assert truth["planted"] == ["energy_dependent_friction"]
     rep = diagnose(log, robot="generic", seed=0, simulate=False)
     assert rep.effects == ["energy_dependent_friction"]
+
+
+def test_the_rule_is_on_and_its_table_is_its_jsons():
+    """The sixty-ninth round was kept (no wrong name gained): both switches are on, the docs' table holds each probe
+    JSON's row as --table-row prints it, no examined row gained a wrong name, and every row where the rule fired is
+    the kept row of its log."""
+    import json
+    from pathlib import Path
+
+    from conftest import bench_module
+    assert core.TIME_LAWS_BY_READINGS_LIKELIHOOD is True and core.TIME_LAW_RESCUE_CHECKS is True
+    probe = bench_module("probe_time_laws_readings_likelihood")
+    bench = bench_module("bench_diagnose_testbench")
+    root = Path(__file__).resolve().parents[1]
+    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    files = sorted((root / "benchmarks" / "results").glob("diagnose_time_laws_readings_round69_*.json"))
+    assert len(files) == 3  # two closed-loop lanes and the open-loop testbench
+    kept = bench.kept_rows_naming("any")
+    for f in files:
+        d = json.loads(f.read_text())
+        assert d["examined"] == len(d["keys_examined"])
+        s = probe.summary([str(f)])
+        assert probe.table_row(f.name, s) in doc
+        assert "wrong name" not in s["cases"]
+        for r in d["rows"]:
+            _, k = kept[(r["family"], r["robot"], r["k"])]
+            assert (k["got"], k["correct"], sorted(k["missed"])) == (r["got"], r["correct"], sorted(r["missed"]))

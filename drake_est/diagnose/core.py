@@ -469,13 +469,14 @@ def _above_quantization(prep, fit0, fit1, ext) -> bool:
     return True
 
 
-#: sixty-eighth round (tried; see docs/readme/diagnose_testbench.md): a law of the friction in time held back by the
-#: ADC guard (:func:`_above_quantization`) is judged by the likelihood of the quantized readings instead
-TIME_LAWS_BY_READINGS_LIKELIHOOD = False
+#: sixty-eighth round (tried, not kept) and sixty-ninth round (kept; see docs/readme/diagnose_testbench.md): a law of
+#: the friction in time held back by the ADC guard (:func:`_above_quantization`) is judged by the likelihood of the
+#: quantized readings instead, under the two conditions of :data:`TIME_LAW_RESCUE_CHECKS`
+TIME_LAWS_BY_READINGS_LIKELIHOOD = True
 #: the laws of the friction in time (the torque ADC's rounding error is a function of the torque level, hence of the
 #: state at steady motion; these are functions of the time alone)
 TIME_LAWS = ("energy_dependent_friction", "abrupt_change")
-#: sixty-ninth round (in trial): a law in time is let past the guard by the readings only alone in time on its joint
+#: sixty-ninth round: a law in time is let past the guard by the readings only alone in time on its joint
 #: and when it predicts the held-out residual given a free function of the joint's state
 TIME_LAW_RESCUE_CHECKS = True
 
