@@ -2449,6 +2449,10 @@ def _refit_steps(prep, steps, reshaped, sigma) -> None:
 #: significant candidate, two candidates of one joint held back only by the paired held-out block test are let through
 #: together when each passes every test of a round beside the other (:func:`pair_rescue`)
 PAIR_RESCUE = False
+#: seventieth round's second rule (after the first one's wrong name at loop spec 2145, a load entered beside an
+#: asymmetric level and kept beside the Stribeck law the next round chose instead): the round after a pair rescue
+#: must accept the partner itself, not only find it significant
+PAIR_RESCUE_PARTNER_WINS = True
 #: the best candidates (by score) among those held back only by the paired block test that :func:`pair_rescue` pairs
 PAIR_RESCUE_TOP = 3
 #: the tests of :func:`_evaluate` whose failure keeps a candidate out of :func:`pair_rescue` (besides the F-test, gain
@@ -2525,9 +2529,12 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
         sig = [r for r in results if r[1]["significant"]]
         best, explained_away = _best_surviving(prep, model, fit, sig, alpha, min_gain)
         if pending is not None:
-            # the round after a pair rescue: the partner must be significant on its joint, else back to the stop
+            # the round after a pair rescue: the partner must be significant on its joint (the second rule: and win
+            # the round), else back to the stop
             if not any(e.effect == pending["partner"] and e.joint == pending["joint"] and t["significant"]
-                       for e, t, _, _ in results):
+                       for e, t, _, _ in results) or (
+                    PAIR_RESCUE_PARTNER_WINS and (best is None or best[0].effect != pending["partner"]
+                                                  or best[0].joint != pending["joint"])):
                 model, fit, steps, rejected = pending["model"], pending["fit"], pending["steps"], pending["rejected"]
                 break
             pending = None
