@@ -66,7 +66,7 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
     if missing:
         raise SystemExit(f"no kept {family} row for k = {missing[0]} ({len(missing)} such)")
     make = B.loop_cases if family == "loop" else B.cases
-    core.PAIR_RESCUE = True
+    was_on, core.PAIR_RESCUE = core.PAIR_RESCUE, True
     rule = core.pair_rescue
     let_through = []
 
@@ -100,7 +100,7 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
                 B._write_json(res, out_path)
     finally:
         core.pair_rescue = rule
-        core.PAIR_RESCUE = False
+        core.PAIR_RESCUE = was_on
     B._write_json(res, out_path)
     return res
 

@@ -2445,10 +2445,11 @@ def _refit_steps(prep, steps, reshaped, sigma) -> None:
         steps[k].fit = Model(prep, [s.ext for s in steps[:k + 1]]).fit(sigma)
 
 
-#: seventieth round (in trial; see benchmarks/results/diagnose_pair_rescue_round70_rule.txt): when a round has no
-#: significant candidate, two candidates of one joint held back only by the paired held-out block test are let through
-#: together when each passes every test of a round beside the other (:func:`pair_rescue`)
-PAIR_RESCUE = False
+#: seventieth round (kept; see docs/readme/diagnose_testbench.md and
+#: benchmarks/results/diagnose_pair_rescue_round70_rule.txt): when a round has no significant candidate, two candidates
+#: of one joint held back only by the paired held-out block test are let through together when each passes every test
+#: of a round beside the other (:func:`pair_rescue`)
+PAIR_RESCUE = True
 #: seventieth round's second rule (after the first one's wrong name at loop spec 2145, a load entered beside an
 #: asymmetric level and kept beside the Stribeck law the next round chose instead): the round after a pair rescue
 #: must accept the partner itself, not only find it significant

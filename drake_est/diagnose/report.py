@@ -199,6 +199,16 @@ class DiagnosisReport:
                 ev["given_state_function"] = s.test["state_law_test"]
                 if "half_gains" in s.test:
                     ev["gains_across_halves"] = s.test["half_gains"]
+            if "significant_beside" in s.test:
+                # held back alone by the paired block test, let through with a second law of its joint
+                # (core.pair_rescue): both tests given each other, and the paired test of the pair
+                b = s.test["significant_beside"]
+                ev["entered_with"] = {
+                    "partner": b["partner"], "paired_p_value_alone": s.test.get("paired_p_value"),
+                    "paired_p_value_of_both": b["paired_p_value_of_both"], "groups": b["groups"],
+                    "groups_both_better": b["groups_both_better"],
+                    **{f"{key}_{k2}": b[key][k2] for key in ("test_given_partner", "partner_test_given_this")
+                       for k2 in ("p_value", "rmse_reduction", "paired_p_value") if k2 in b[key]}}
             f = {"effect": s.ext.effect, "joint": int(s.ext.joint), "score": s.test["score"], "evidence": ev,
                  "parameters": effect_parameters(res, s.ext, model_k, s.fit),
                  "validation": s.validation,
@@ -403,6 +413,15 @@ def markdown(d: dict) -> str:
                      + (", and fitted on either half of the log it lowers that of the other half by "
                         + " and ".join(f"{100 * x:.1f} %" for x in ev["gains_across_halves"])
                         if ev.get("gains_across_halves") else "") + ".")
+        if ev.get("entered_with"):
+            w = ev["entered_with"]
+            alone = w.get("paired_p_value_alone")
+            L.append(f"Entered together with `{w['partner']}` on the same joint: alone, its held-out gain did not hold "
+                     "across the held-out blocks" + (f" (paired p = {alone:.2g})" if alone is not None else "")
+                     + f"; the two together predict {w['groups_both_better']} of {w['groups']} block groups better "
+                     f"(paired p = {w['paired_p_value_of_both']:.2g}), and given `{w['partner']}` it lowers the "
+                     f"held-out RMSE by {100 * w['test_given_partner_rmse_reduction']:.1f} % (paired p = "
+                     f"{w['test_given_partner_paired_p_value']:.2g}).")
         c = f.get("competition") or {}
         if c.get("runner_up"):
             m = c.get("margin")
