@@ -136,3 +136,14 @@ def test_a_load_that_entered_beside_the_level_is_not_named(monkeypatch):
     rep = diagnose(log, robot="generic", seed=0, simulate=False)
     named = {f["effect"] for f in rep.to_dict()["findings"]}
     assert named <= set(truth["planted"]), named
+
+
+def test_the_cost_sentence_is_its_json():
+    import json
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    d = json.loads((root / "benchmarks" / "results" / "diagnose_pair_rescue_cost.json").read_text())
+    doc = " ".join((root / "docs" / "readme" / "diagnose_testbench.md").read_text().split())
+    assert (f"the speed benchmark's {d['logs']} closed-loop logs take {d['cpu_s_on']:.1f} s of CPU with the rule and "
+            f"{d['cpu_s_off']:.1f} s without (ratio {d['ratio_on_to_off']:.3f}), with the same findings") in doc
+    assert d["same_findings"] is True
