@@ -121,6 +121,24 @@ def table_row(name: str, s: dict) -> str:
     return "| " + " | ".join(cells + [wrong]) + " |"
 
 
+def report_cli(argv) -> bool:
+    """The probes' shared report commands: ``--table-row A.json B.json`` (each JSON's row of the docs' table) and
+    ``--summary A.json,B.json`` (their summary as JSON).  Returns True when ``argv`` was one of them (printed)."""
+    if argv and argv[0] == "--table-row":
+        if len(argv) < 2:
+            raise SystemExit("--table-row needs one or more JSON files")
+        from pathlib import Path
+        for p in argv[1:]:
+            print(table_row(Path(p).name, summary([p])))
+        return True
+    if argv and argv[0] == "--summary":
+        if len(argv) < 2:
+            raise SystemExit("--summary needs a comma-separated list of JSON files")
+        print(json.dumps(summary(argv[1].split(",")), indent=1))
+        return True
+    return False
+
+
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "--keys":
@@ -134,17 +152,7 @@ def main(argv=None):
         a = ap.parse_args(argv)
         print(" ".join(str(k) for k in sample_keys(a.sample_rate, a.above, a.seed, a.below)))
         return
-    if argv and argv[0] == "--table-row":
-        if len(argv) < 2:
-            raise SystemExit("--table-row needs one or more JSON files")
-        from pathlib import Path
-        for p in argv[1:]:
-            print(table_row(Path(p).name, summary([p])))
-        return
-    if argv and argv[0] == "--summary":
-        if len(argv) < 2:
-            raise SystemExit("--summary needs a comma-separated list of JSON files")
-        print(json.dumps(summary(argv[1].split(",")), indent=1))
+    if report_cli(argv):
         return
     if len(argv) < 2:
         raise SystemExit(__doc__)

@@ -20,7 +20,6 @@ run got).  Rows are classified as in the sixty-seventh round's probe (``probe_ji
 """
 from __future__ import annotations
 
-import json
 import os
 import random
 import sys
@@ -28,7 +27,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_diagnose_testbench as B  # noqa: E402
-from probe_jitter_second_differences import classify, summary, table_row  # noqa: E402,F401  (re-exported)
+from probe_jitter_second_differences import classify, report_cli, summary, table_row  # noqa: E402,F401  (re-exported)
 
 OOV = ("backlash", "compliance", "sensor_delay")
 CLASSES = ("missed", "null_oov", "other", "testbench")
@@ -115,17 +114,7 @@ def main(argv=None):
         a = ap.parse_args(argv)
         print(" ".join(str(k) for k in sample_keys(a.keys, a.seed)))
         return
-    if argv and argv[0] == "--table-row":
-        if len(argv) < 2:
-            raise SystemExit("--table-row needs one or more JSON files")
-        from pathlib import Path
-        for p in argv[1:]:
-            print(table_row(Path(p).name, summary([p])))
-        return
-    if argv and argv[0] == "--summary":
-        if len(argv) < 2:
-            raise SystemExit("--summary needs a comma-separated list of JSON files")
-        print(json.dumps(summary(argv[1].split(",")), indent=1))
+    if report_cli(argv):
         return
     family = "loop"
     if argv and argv[0].startswith("--family="):

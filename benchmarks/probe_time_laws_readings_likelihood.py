@@ -22,7 +22,6 @@ a stopped run got).  Rows are sorted as in the sixty-seventh round's probe (``pr
 """
 from __future__ import annotations
 
-import json
 import os
 import random
 import sys
@@ -30,7 +29,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_diagnose_testbench as B  # noqa: E402
-from probe_jitter_second_differences import classify, summary, table_row  # noqa: E402,F401  (re-exported for the docs test)
+from probe_jitter_second_differences import classify, report_cli, summary, table_row  # noqa: E402,F401  (re-exported for the docs test)
 
 OOV = ("backlash", "compliance", "sensor_delay")
 
@@ -118,17 +117,7 @@ def main(argv=None):
         noise = None if a.noise == "any" else a.noise
         print(" ".join(str(k) for k in sample_keys(noise, a.missed, a.truth, a.sample_rate, a.seed, a.family)))
         return
-    if argv and argv[0] == "--table-row":
-        if len(argv) < 2:
-            raise SystemExit("--table-row needs one or more JSON files")
-        from pathlib import Path
-        for p in argv[1:]:
-            print(table_row(Path(p).name, summary([p])))
-        return
-    if argv and argv[0] == "--summary":
-        if len(argv) < 2:
-            raise SystemExit("--summary needs a comma-separated list of JSON files")
-        print(json.dumps(summary(argv[1].split(",")), indent=1))
+    if report_cli(argv):
         return
     family = "loop"
     if argv and argv[0].startswith("--family="):

@@ -2536,7 +2536,8 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
                        for e, t, _, _ in results) or (
                     PAIR_RESCUE_PARTNER_WINS and (best is None or best[0].effect != pending["partner"]
                                                   or best[0].joint != pending["joint"])):
-                model, fit, steps, rejected = pending["model"], pending["fit"], pending["steps"], pending["rejected"]
+                # (rejected still holds the stopped round's candidates: no round has stopped since)
+                model, fit, steps = pending["model"], pending["fit"], pending["steps"]
                 break
             pending = None
         if best is None:
@@ -2549,7 +2550,7 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
             if rescued is None or best is None:
                 break
             pending = {"partner": rescued[1], "joint": rescued[2]["joint"], "model": model, "fit": fit,
-                       "steps": [copy.copy(st) for st in steps], "rejected": rejected}
+                       "steps": [copy.copy(st) for st in steps]}
         best, periodic = comp.resolve_periodic(prep, best, results)
         ext, tst, f1, m1 = best
         _mark_confounded_with_time(prep, model, best, results, alpha, min_gain)
