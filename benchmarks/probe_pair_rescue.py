@@ -27,7 +27,8 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_diagnose_testbench as B  # noqa: E402
-from probe_jitter_second_differences import classify, report_cli, summary, table_row  # noqa: E402,F401  (re-exported)
+from probe_jitter_second_differences import classify, summary, table_row  # noqa: E402,F401  (re-exported)
+from probe_runner import probe_main, run_rule_probe  # noqa: E402
 
 OOV = ("backlash", "compliance", "sensor_delay")
 CLASSES = ("missed", "null_oov", "other", "testbench")
@@ -54,79 +55,33 @@ def sample_keys(cls: str, seed: int = 70) -> list:
     return random.Random(seed).sample(ks, len(ks))
 
 
+def _let_through(got, a, kw):
+    """The record of one pair the rule let through (None: it let none through)."""
+    if got is None:
+        return None
+    info = got[2]
+    return {"effect": got[0][0].effect, "partner": info["partner"], "joint": info["joint"],
+            "paired_p_value_of_both": info["paired_p_value_of_both"]}
+
+
 def run(out_path: str, keys, family: str = "loop") -> dict:
     """Diagnose the kept logs ``keys`` of ``family`` with the rule on; store the rows of the logs where it let a pair
     through."""
-    from drake_est.diagnose import core
-    if family not in ("loop", "testbench"):
-        raise SystemExit(f"--family must be loop or testbench, got {family!r}")
-    kept = {k: v for (f, _, k), v in B.kept_rows_naming("any").items() if f == family}
-    missing = [k for k in keys if k not in kept]
-    if missing:
-        raise SystemExit(f"no kept {family} row for k = {missing[0]} ({len(missing)} such)")
-    make = B.loop_cases if family == "loop" else B.cases
-    was_on, core.PAIR_RESCUE = core.PAIR_RESCUE, True
-    rule = core.pair_rescue
-    let_through = []
+    return run_rule_probe(out_path, keys, family, rule="PAIR_RESCUE", func="pair_rescue", record=_let_through,
+                          hits_key="let_through", row_class=row_class)
 
-    def counted(*a, **kw):
-        got = rule(*a, **kw)
-        if got is not None:
-            info = got[2]
-            let_through.append({"effect": got[0][0].effect, "partner": info["partner"], "joint": info["joint"],
-                                "paired_p_value_of_both": info["paired_p_value_of_both"]})
-        return got
 
-    core.pair_rescue = counted
-    res = {"rule": "PAIR_RESCUE", "family": family, "examined": 0, "keys_examined": [], "classes_examined": {},
-           "touched": [], "rows": [], "refused": []}
-    try:
-        for m, k in enumerate(keys):
-            spec = make(k + 1)[k]
-            let_through.clear()
-            rows = []
-            B._run_family(family, [spec], rows, k, res["refused"])
-            res["examined"] += 1
-            res["keys_examined"].append(k)
-            c = row_class(family, kept[k][1])
-            res["classes_examined"][c] = res["classes_examined"].get(c, 0) + 1
-            if let_through:
-                res["touched"].append({"k": k, "class": c, "let_through": list(let_through)})
-                for r in rows:
-                    r["kept_json"], r["kept_row"] = kept[k][0], kept[k][1]
-                    res["rows"].append(r)
-            if m % 10 == 9:
-                B._write_json(res, out_path)
-    finally:
-        core.pair_rescue = rule
-        core.PAIR_RESCUE = was_on
-    B._write_json(res, out_path)
-    return res
+def _keys_cli(argv):
+    import argparse
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--keys", choices=CLASSES, required=True)
+    ap.add_argument("--seed", type=int, default=70)
+    a = ap.parse_args(argv)
+    print(" ".join(str(k) for k in sample_keys(a.keys, a.seed)))
 
 
 def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "--keys":
-        import argparse
-        ap = argparse.ArgumentParser()
-        ap.add_argument("--keys", choices=CLASSES, required=True)
-        ap.add_argument("--seed", type=int, default=70)
-        a = ap.parse_args(argv)
-        print(" ".join(str(k) for k in sample_keys(a.keys, a.seed)))
-        return
-    if report_cli(argv):
-        return
-    family = "loop"
-    if argv and argv[0].startswith("--family="):
-        family = argv.pop(0).split("=", 1)[1]
-    if len(argv) < 2:
-        raise SystemExit(__doc__)
-    try:
-        keys = [int(x) for x in argv[1:]]
-    except ValueError as e:
-        raise SystemExit(f"expected spec numbers after OUT.json: {e}")
-    res = run(argv[0], keys, family)
-    print(f"examined {res['examined']}, rule fired in {len(res['touched'])}, diagnosed {len(res['rows'])}")
+    probe_main(sys.argv[1:] if argv is None else argv, __doc__, _keys_cli, run)
 
 
 if __name__ == "__main__":

@@ -29,7 +29,8 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_diagnose_testbench as B  # noqa: E402
-from probe_jitter_second_differences import classify, report_cli, summary, table_row  # noqa: E402,F401  (re-exported for the docs test)
+from probe_jitter_second_differences import classify, summary, table_row  # noqa: E402,F401  (re-exported for the docs test)
+from probe_runner import probe_main, run_rule_probe  # noqa: E402
 
 OOV = ("backlash", "compliance", "sensor_delay")
 
@@ -53,83 +54,40 @@ def sample_keys(noise: str | None = "quantized", missed: str | None = None, trut
     return random.Random(seed).sample(ks, len(ks))
 
 
+def _kept_by_rule(got, a, kw):
+    """The record of one candidate the rule kept (None: it kept none)."""
+    if got is None:
+        return None
+    ext = a[2]
+    return {"effect": ext.effect, "joint": int(ext.joint),
+            "heldout_loglik_gain_profiled": got["heldout_loglik_gain_profiled"],
+            "rounding_lr_bound": got["rounding_lr_bound"]}
+
+
 def run(out_path: str, keys, family: str = "loop") -> dict:
     """Diagnose the kept logs ``keys`` of ``family`` (``loop``: the closed-loop generator; ``testbench``: the
     open-loop one) with the rule on; store the rows of the logs where it let a candidate through."""
-    from drake_est.diagnose import core
-    if family not in ("loop", "testbench"):
-        raise SystemExit(f"--family must be loop or testbench, got {family!r}")
-    kept = {k: v for (f, _, k), v in B.kept_rows_naming("any").items() if f == family}
-    missing = [k for k in keys if k not in kept]
-    if missing:
-        raise SystemExit(f"no kept {family} row for k = {missing[0]} ({len(missing)} such)")
-    make = B.loop_cases if family == "loop" else B.cases
-    core.TIME_LAWS_BY_READINGS_LIKELIHOOD = True
-    rule = core.time_law_beyond_rounding
-    kept_by_rule = []
+    return run_rule_probe(out_path, keys, family, rule="TIME_LAWS_BY_READINGS_LIKELIHOOD",
+                          func="time_law_beyond_rounding", record=_kept_by_rule, hits_key="kept_by_rule")
 
-    def counted(prep, model, ext, *a, **kw):
-        got = rule(prep, model, ext, *a, **kw)
-        if got is not None:
-            kept_by_rule.append({"effect": ext.effect, "joint": int(ext.joint),
-                                 "heldout_loglik_gain_profiled": got["heldout_loglik_gain_profiled"],
-                                 "rounding_lr_bound": got["rounding_lr_bound"]})
-        return got
 
-    core.time_law_beyond_rounding = counted
-    res = {"rule": "TIME_LAWS_BY_READINGS_LIKELIHOOD", "family": family, "examined": 0, "keys_examined": [], "touched": [], "rows": [],
-           "refused": []}
-    try:
-        for m, k in enumerate(keys):
-            spec = make(k + 1)[k]
-            kept_by_rule.clear()
-            rows = []
-            B._run_family(family, [spec], rows, k, res["refused"])
-            res["examined"] += 1
-            res["keys_examined"].append(k)
-            if kept_by_rule:
-                res["touched"].append({"k": k, "kept_by_rule": list(kept_by_rule)})
-                for r in rows:
-                    r["kept_json"], r["kept_row"] = kept[k][0], kept[k][1]
-                    res["rows"].append(r)
-            if m % 10 == 9:
-                B._write_json(res, out_path)
-    finally:
-        core.time_law_beyond_rounding = rule
-        core.TIME_LAWS_BY_READINGS_LIKELIHOOD = False
-    B._write_json(res, out_path)
-    return res
+def _keys_cli(argv):
+    import argparse
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--keys", action="store_true")
+    ap.add_argument("--noise", default="quantized")
+    ap.add_argument("--missed", default=None)
+    ap.add_argument("--truth", choices=("any", "none", "oov"), default="any")
+    ap.add_argument("--sample-rate", type=float, default=None)
+    ap.add_argument("--seed", type=int, default=68)
+    ap.add_argument("--family", choices=("loop", "testbench"), default="loop")
+    a = ap.parse_args(argv)
+    noise = None if a.noise == "any" else a.noise
+    print(" ".join(str(k) for k in sample_keys(noise, a.missed, a.truth, a.sample_rate, a.seed, a.family)))
 
 
 def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "--keys":
-        import argparse
-        ap = argparse.ArgumentParser()
-        ap.add_argument("--keys", action="store_true")
-        ap.add_argument("--noise", default="quantized")
-        ap.add_argument("--missed", default=None)
-        ap.add_argument("--truth", choices=("any", "none", "oov"), default="any")
-        ap.add_argument("--sample-rate", type=float, default=None)
-        ap.add_argument("--seed", type=int, default=68)
-        ap.add_argument("--family", choices=("loop", "testbench"), default="loop")
-        a = ap.parse_args(argv)
-        noise = None if a.noise == "any" else a.noise
-        print(" ".join(str(k) for k in sample_keys(noise, a.missed, a.truth, a.sample_rate, a.seed, a.family)))
-        return
-    if report_cli(argv):
-        return
-    family = "loop"
-    if argv and argv[0].startswith("--family="):
-        family = argv.pop(0).split("=", 1)[1]
-    if len(argv) < 2:
-        raise SystemExit(__doc__)
-    try:
-        keys = [int(x) for x in argv[1:]]
-    except ValueError as e:
-        raise SystemExit(f"expected spec numbers after OUT.json: {e}")
-    res = run(argv[0], keys, family)
-    print(f"examined {res['examined']}, rule fired in {len(res['touched'])}, diagnosed {len(res['rows'])}")
+    probe_main(sys.argv[1:] if argv is None else argv, __doc__, _keys_cli, run)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,109 @@
+"""The loop that every probe of a diagnosis rule runs: switch the rule on, wrap the core function where it acts so
+that each firing is recorded, diagnose each kept log given, and store the rows of the logs where it fired beside
+their kept rows (a log where it never fired gets the kept row's diagnosis: the rule changes nothing else).
+
+Used by ``probe_time_laws_readings_likelihood.py`` (sixty-eighth round), ``probe_pair_rescue.py`` (seventieth) and
+``probe_held_back_rival.py`` (seventy-first).
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import bench_diagnose_testbench as B  # noqa: E402
+
+FAMILIES = ("loop", "testbench")
+
+
+def kept_rows(family: str, keys) -> dict:
+    """{k: (kept JSON, kept row)} of ``family``'s kept logs; exits with a one-line message when a key has none."""
+    if family not in FAMILIES:
+        raise SystemExit(f"--family must be loop or testbench, got {family!r}")
+    kept = {k: v for (f, _, k), v in B.kept_rows_naming("any").items() if f == family}
+    missing = [k for k in keys if k not in kept]
+    if missing:
+        raise SystemExit(f"no kept {family} row for k = {missing[0]} ({len(missing)} such)")
+    return kept
+
+
+def run_rule_probe(out_path: str, keys, family: str, *, rule: str, func: str, record, hits_key: str,
+                   row_class=None, compare_off: bool = False) -> dict:
+    """Diagnose the kept logs ``keys`` of ``family`` with ``core.<rule>`` set True and ``core.<func>`` wrapped:
+    ``record(result, args, kwargs)`` returns what to store of one call (None: the rule did not fire there).  The logs
+    where it fired are listed under ``touched`` (``hits_key``: the records) and their rows stored with ``kept_json`` and
+    ``kept_row``; ``compare_off``: such a log is diagnosed again with the rule off, its rows stored under ``rows_off``
+    (the same machine's last digits).  ``row_class(family, kept_row)``: a class counted under ``classes_examined``.
+    Writes ``out_path`` every ten logs (``examined`` says how far a stopped run got) and at the end."""
+    from drake_est.diagnose import core
+    kept = kept_rows(family, keys)
+    make = B.loop_cases if family == "loop" else B.cases
+    was_on, original = getattr(core, rule), getattr(core, func)
+    hits = []
+
+    def counted(*a, **kw):
+        got = original(*a, **kw)
+        rec = record(got, a, kw)
+        if rec is not None:
+            hits.append(rec)
+        return got
+
+    res = {"rule": rule, "family": family, "examined": 0, "keys_examined": [], "touched": [], "rows": [],
+           "refused": []}
+    if row_class is not None:
+        res["classes_examined"] = {}
+    if compare_off:
+        res["rows_off"] = []
+    setattr(core, func, counted)
+    try:
+        for m, k in enumerate(keys):
+            spec = make(k + 1)[k]
+            hits.clear()
+            rows = []
+            setattr(core, rule, True)
+            B._run_family(family, [spec], rows, k, res["refused"])
+            res["examined"] += 1
+            res["keys_examined"].append(k)
+            c = row_class(family, kept[k][1]) if row_class is not None else None
+            if c is not None:
+                res["classes_examined"][c] = res["classes_examined"].get(c, 0) + 1
+            if hits:
+                res["touched"].append({"k": k, **({"class": c} if c is not None else {}), hits_key: list(hits)})
+                for r in rows:
+                    r["kept_json"], r["kept_row"] = kept[k][0], kept[k][1]
+                    res["rows"].append(r)
+                if compare_off:
+                    setattr(core, rule, False)
+                    B._run_family(family, [spec], res["rows_off"], k, res["refused"])
+            if m % 10 == 9:
+                B._write_json(res, out_path)
+    finally:
+        setattr(core, func, original)
+        setattr(core, rule, was_on)
+    B._write_json(res, out_path)
+    return res
+
+
+def probe_main(argv, doc: str, keys_cli, run) -> None:
+    """The command line every probe shares: ``--keys ...`` (``keys_cli(argv)`` prints the keys), ``--table-row`` and
+    ``--summary`` (:func:`probe_jitter_second_differences.report_cli`), else ``[--family=F] OUT.json K...`` given to
+    ``run(out_path, keys, family)``."""
+    from probe_jitter_second_differences import report_cli
+    argv = list(argv)
+    if argv and argv[0] == "--keys":
+        keys_cli(argv)
+        return
+    if report_cli(argv):
+        return
+    family = "loop"
+    if argv and argv[0].startswith("--family="):
+        family = argv.pop(0).split("=", 1)[1]
+    if len(argv) < 2:
+        raise SystemExit(doc)
+    try:
+        keys = [int(x) for x in argv[1:]]
+    except ValueError as e:
+        raise SystemExit(f"expected spec numbers after OUT.json: {e}")
+    res = run(argv[0], keys, family)
+    print(f"examined {res['examined']}, rule fired in {len(res['touched'])}, diagnosed {len(res['rows'])}")
