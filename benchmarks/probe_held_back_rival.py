@@ -13,6 +13,7 @@ kept row and beside the row of the same log diagnosed with the rule off on this 
     python benchmarks/probe_held_back_rival.py --keys testbench > kt.txt
     OPENBLAS_NUM_THREADS=1 python benchmarks/probe_held_back_rival.py --family=testbench OUT.json $(cat kt.txt)
     python benchmarks/probe_held_back_rival.py --against-off A.json B.json
+    python benchmarks/probe_held_back_rival.py --against-off-rows A.json B.json     # the docs' table
 
 ``--keys CLASS``: as the seventieth round's probe (``probe_pair_rescue``: ``missed``, ``null_oov``, ``other``,
 ``testbench``), seed 71 by default.  ``--against-off``: the examined rows where the rule fired, each judged against its
@@ -57,7 +58,8 @@ def against_off(paths) -> dict:
     """The rows where the rule fired, judged against their rule-off rows of the same machine."""
     out = {"examined": 0, "fired": 0, "classes_examined": {}, "changed": [], "wrong_gained": [], "wrong_lost": [],
            "missed_on": 0, "missed_off": 0, "null_findings_gained": [], "oov_unexplained_lost": [],
-           "correct_off": 0, "outright_off": 0, "outright_lost": [], "verdict_changed": []}
+           "correct_off": 0, "outright_off": 0, "outright_lost": [], "verdict_changed": [],
+           "off_differs_from_kept_row": []}
     for p in paths:
         d = json.load(open(p))
         out["examined"] += d["examined"]
@@ -72,6 +74,9 @@ def against_off(paths) -> dict:
             k = r["k"]
             out["missed_on"] += len(r["missed"])
             out["missed_off"] += len(o["missed"])
+            if o["got"] != r["kept_row"]["got"]:
+                # this machine's diagnosis with the rule off is not the kept row's (another CPU's last digits)
+                out["off_differs_from_kept_row"].append(k)
             if r["got"] != o["got"]:
                 out["changed"].append({"k": k, "truth": r["truth"], "off": o["got"], "on": r["got"]})
             if r["wrong"] and not o["wrong"]:
@@ -87,11 +92,26 @@ def against_off(paths) -> dict:
                 out["correct_off"] += 1
                 if _outright(o):
                     out["outright_off"] += 1
-                    if not _outright(r):
+                    if r["correct"] and not _outright(r):     # still correct, a finding now ambiguous
                         out["outright_lost"].append(k)
             if bool(r["correct"]) != bool(o["correct"]):
                 out["verdict_changed"].append({"k": k, "off": bool(o["correct"]), "on": bool(r["correct"])})
     return out
+
+
+#: the header of the docs' table of :func:`against_off_row`
+AGAINST_OFF_HEADER = ("| JSON | logs examined | rule fired | named effects changed | wrong name gained | wrong name lost | "
+                      "missed effects, off -> on | null log, finding gained | out of vocabulary, `unexplained` lost | "
+                      "correct, no longer named outright | mended | broken |\n|---|---|---|---|---|---|---|---|---|---|---|---|")
+
+
+def against_off_row(name: str, s: dict) -> str:
+    """One row of the docs' table: :func:`against_off` of one JSON ``name``."""
+    mended = sum(1 for v in s["verdict_changed"] if v["on"])
+    broken = sum(1 for v in s["verdict_changed"] if not v["on"])
+    return (f"| `{name}` | {s['examined']} | {s['fired']} | {len(s['changed'])} | {len(s['wrong_gained'])} | "
+            f"{len(s['wrong_lost'])} | {s['missed_off']} -> {s['missed_on']} | {len(s['null_findings_gained'])} | "
+            f"{len(s['oov_unexplained_lost'])} | {len(s['outright_lost'])} | {mended} | {broken} |")
 
 
 def _keys_cli(argv):
@@ -109,6 +129,11 @@ def main(argv=None):
         if len(argv) < 2:
             raise SystemExit("--against-off: give the probe's JSON files")
         print(json.dumps(against_off(argv[1:]), indent=1))
+        return
+    if argv and argv[0] == "--against-off-rows":
+        print(AGAINST_OFF_HEADER)
+        for p in argv[1:]:
+            print(against_off_row(os.path.basename(p), against_off([p])))
         return
     probe_main(argv, __doc__, _keys_cli, run)
 

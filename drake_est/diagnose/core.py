@@ -1471,7 +1471,7 @@ def _not_separated(rival, joint, score, rival_score, p_value) -> dict:
 PAIRED_ALPHA = 0.05
 #: seventy-first round: a round's winner stands beside a higher-scoring rival of its joint that failed only the
 #: paired block test when the winner does not predict the held-out blocks better than that rival (:func:`_competition`)
-HELD_BACK_RIVALS = False
+HELD_BACK_RIVALS = True
 
 
 #: when the final residual of a joint still holds structure (the "unexplained" verdict), the model is
