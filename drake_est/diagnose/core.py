@@ -548,7 +548,10 @@ def _competition(ext, tst, results, prep=None) -> dict:
     evidence separates them (``ambiguous`` when a significant rival's score is within :data:`AMBIGUITY_MARGIN`,
     or, on a coarsely quantized torque, a simpler significant rival predicts within one quantization step).
     ``ambiguous_with``: every rival not separated that way, best first (the runner-up need not be one of them:
-    a simpler rival further behind may predict as well to within the rounding of the torque)."""
+    a simpler rival further behind may predict as well to within the rounding of the torque).  With
+    :data:`HELD_BACK_RIVALS`, a higher-scoring rival that only the paired block test held back joins them when the
+    blocks do not show the winner predicting better than it (:func:`held_back_rival_not_separated`; its paired p under
+    ``held_back_rivals_not_separated``)."""
     js = set(ext.cols)
     rivals = [(e, t) for e, t, _, _ in results if e is not ext and e.effect != ext.effect and js & set(e.cols)]
     if not rivals:
