@@ -22,13 +22,14 @@ of out-of-vocabulary logs, rows no longer named outright).
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from probe_pair_rescue import CLASSES, row_class, sample_keys  # noqa: E402
+from probe_pair_rescue import keys_cli, row_class  # noqa: E402
 from probe_runner import probe_main, run_rule_probe  # noqa: E402
 
 
@@ -59,13 +60,15 @@ def against_off(paths) -> dict:
     out = {"examined": 0, "fired": 0, "classes_examined": {}, "changed": [], "wrong_gained": [], "wrong_lost": [],
            "missed_on": 0, "missed_off": 0, "null_findings_gained": [], "oov_unexplained_lost": [],
            "correct_off": 0, "outright_off": 0, "outright_lost": [], "verdict_changed": [],
-           "off_differs_from_kept_row": []}
+           "off_differs_from_kept_row": [], "refused_off": []}
     for p in paths:
         d = json.load(open(p))
         out["examined"] += d["examined"]
         for c, n in d.get("classes_examined", {}).items():
             out["classes_examined"][c] = out["classes_examined"].get(c, 0) + n
         off = {r["k"]: r for r in d.get("rows_off", [])}
+        # a log refused with the rule off has no row to judge against: counted, not judged
+        out["refused_off"] += [x["k"] for x in d.get("refused_off", [])]
         for r in d["rows"]:
             o = off.get(r["k"])
             if o is None:
@@ -114,15 +117,6 @@ def against_off_row(name: str, s: dict) -> str:
             f"{len(s['oov_unexplained_lost'])} | {len(s['outright_lost'])} | {mended} | {broken} |")
 
 
-def _keys_cli(argv):
-    import argparse
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--keys", choices=CLASSES, required=True)
-    ap.add_argument("--seed", type=int, default=71)
-    a = ap.parse_args(argv)
-    print(" ".join(str(k) for k in sample_keys(a.keys, a.seed)))
-
-
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "--against-off":
@@ -135,7 +129,7 @@ def main(argv=None):
         for p in argv[1:]:
             print(against_off_row(os.path.basename(p), against_off([p])))
         return
-    probe_main(argv, __doc__, _keys_cli, run)
+    probe_main(argv, __doc__, functools.partial(keys_cli, seed=71), run)
 
 
 if __name__ == "__main__":

@@ -34,7 +34,7 @@ def run_rule_probe(out_path: str, keys, family: str, *, rule: str, func: str, re
     ``record(result, args, kwargs)`` returns what to store of one call (None: the rule did not fire there).  The logs
     where it fired are listed under ``touched`` (``hits_key``: the records) and their rows stored with ``kept_json`` and
     ``kept_row``; ``compare_off``: such a log is diagnosed again with the rule off, its rows stored under ``rows_off``
-    (the same machine's last digits).  ``row_class(family, kept_row)``: a class counted under ``classes_examined``.
+    (the same machine's last digits), its refusals under ``refused_off``.  ``row_class(family, kept_row)``: a class counted under ``classes_examined``.
     Writes ``out_path`` every ten logs (``examined`` says how far a stopped run got) and at the end."""
     from drake_est.diagnose import core
     kept = kept_rows(family, keys)
@@ -54,7 +54,7 @@ def run_rule_probe(out_path: str, keys, family: str, *, rule: str, func: str, re
     if row_class is not None:
         res["classes_examined"] = {}
     if compare_off:
-        res["rows_off"] = []
+        res["rows_off"], res["refused_off"] = [], []
     setattr(core, func, counted)
     try:
         for m, k in enumerate(keys):
@@ -75,7 +75,7 @@ def run_rule_probe(out_path: str, keys, family: str, *, rule: str, func: str, re
                     res["rows"].append(r)
                 if compare_off:
                     setattr(core, rule, False)
-                    B._run_family(family, [spec], res["rows_off"], k, res["refused"])
+                    B._run_family(family, [spec], res["rows_off"], k, res["refused_off"])
             if m % 10 == 9:
                 B._write_json(res, out_path)
     finally:

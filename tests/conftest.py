@@ -66,6 +66,26 @@ def closed_loop_case(k: int, reference_ulps: int = 0):
     return (mod, spec) + tuple(mod.loop_log(spec, **kw))
 
 
+def probe_results(pattern: str):
+    """(the text of docs/readme/diagnose_testbench.md, [(path, JSON)] of the probe JSONs
+    ``benchmarks/results/PATTERN`` in name order, and ``differences(d)``: a probe JSON's rows, their ``kept_json`` and
+    ``kept_row`` left out, against the kept rows (``bench_diagnose_testbench.row_differences``; [] when every row is
+    its log's kept row)).  Each JSON must say how far it got: ``examined`` equals its ``keys_examined``."""
+    import json
+    root = Path(__file__).resolve().parents[1]
+    bench = bench_module("bench_diagnose_testbench")
+    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    out = [(f, json.loads(f.read_text())) for f in sorted((root / "benchmarks" / "results").glob(pattern))]
+    for f, d in out:
+        assert d["examined"] == len(d["keys_examined"]), f.name
+    kept = bench.kept_rows_naming("any")
+
+    def differences(d) -> list:
+        return bench.row_differences(kept, [{k: v for k, v in r.items() if k not in ("kept_json", "kept_row")}
+                                            for r in d["rows"]])
+    return doc, out, differences
+
+
 def search_names(d) -> list:
     """The effects a diagnosis search ``d`` (:func:`drake_est.diagnose.core.run_diagnosis`) names: each step's effect,
     then the rivals of the steps reported ambiguous."""

@@ -8,7 +8,7 @@ import pytest
 
 from drake_est.diagnose import core, diagnose
 
-from conftest import bench_module, closed_loop_case, nominal_candidates
+from conftest import bench_module, closed_loop_case, nominal_candidates, probe_results
 
 
 def _entry(effect, score, fit, joint=1, **flags):
@@ -111,26 +111,17 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
     """The seventy-first round was kept: the switch is on, the docs' table holds each probe JSON's row as
     --against-off-rows prints it, no row gained a wrong name, 28061 lost its own, and every row where the rule fired
     is the kept row of its log (folded: the bench's own comparison, on every outcome field)."""
-    import json
-    from pathlib import Path
     assert core.HELD_BACK_RIVALS is True
     probe = bench_module("probe_held_back_rival")
-    bench = bench_module("bench_diagnose_testbench")
-    root = Path(__file__).resolve().parents[1]
-    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
-    files = sorted((root / "benchmarks" / "results").glob("diagnose_held_back_rival_round71_*.json"))
+    doc, files, differences = probe_results("diagnose_held_back_rival_round71_*.json")
     assert len(files) == 3
     assert probe.AGAINST_OFF_HEADER in doc
-    kept = bench.kept_rows_naming("any")
     lost = []
-    for f in files:
-        d = json.loads(f.read_text())
-        assert d["examined"] == len(d["keys_examined"])
+    for f, d in files:
         s = probe.against_off([str(f)])
         assert probe.against_off_row(f.name, s) in doc
         assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == s["outright_lost"] == []
         assert s["missed_on"] <= s["missed_off"]
         lost += s["wrong_lost"]
-        rows = [{k: v for k, v in r.items() if k not in ("kept_json", "kept_row")} for r in d["rows"]]
-        assert bench.row_differences(kept, rows) == [], f.name
+        assert differences(d) == [], f.name
     assert lost == [28061]

@@ -98,21 +98,12 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
     """The seventieth round was kept: both switches are on, the docs' table holds each probe JSON's row as
     --table-row prints it, the first rule's only wrong name is 2145, the second rule's rows gain none, and every row
     where it fired is the kept row of its log (the bench's own comparison, on every outcome field)."""
-    import json
-    from pathlib import Path
-
-    from conftest import bench_module
+    from conftest import bench_module, probe_results
     assert core.PAIR_RESCUE is True and core.PAIR_RESCUE_PARTNER_WINS is True
     probe = bench_module("probe_pair_rescue")
-    bench = bench_module("bench_diagnose_testbench")
-    root = Path(__file__).resolve().parents[1]
-    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
-    files = sorted((root / "benchmarks" / "results").glob("diagnose_pair_rescue_round70_*.json"))
+    doc, files, differences = probe_results("diagnose_pair_rescue_round70_*.json")
     assert len(files) == 7
-    kept = bench.kept_rows_naming("any")
-    for f in files:
-        d = json.loads(f.read_text())
-        assert d["examined"] == len(d["keys_examined"])
+    for f, d in files:
         s = probe.summary([str(f)])
         assert probe.table_row(f.name, s) in doc
         wrong = [x["k"] for x in s["cases"].get("wrong name", [])]
@@ -120,8 +111,7 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
             assert wrong == ([2145] if f.name.endswith("first_rule_lane_a.json") else [])
             continue
         assert wrong == [] and "null log, entry gained" not in s["classes"]
-        rows = [{k: v for k, v in r.items() if k not in ("kept_json", "kept_row")} for r in d["rows"]]
-        assert bench.row_differences(kept, rows) == [], f.name
+        assert differences(d) == [], f.name
 
 
 @pytest.mark.long

@@ -66,17 +66,11 @@ def test_a_change_the_blocks_do_not_separate_from_the_drift_is_ambiguous(monkeyp
 def _probe_jsons(pattern: str) -> list:
     """[(probe JSON, its summary)] of the probe JSONs matching ``pattern`` in benchmarks/results, each checked to count
     the keys it examined and to have its --table-row in the docs' table."""
-    import json
-    from pathlib import Path
-
-    from conftest import bench_module
+    from conftest import bench_module, probe_results
     probe = bench_module("probe_time_laws_readings_likelihood")
-    root = Path(__file__).resolve().parents[1]
-    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    doc, files, _ = probe_results(pattern)
     out = []
-    for f in sorted((root / "benchmarks" / "results").glob(pattern)):
-        d = json.loads(f.read_text())
-        assert d["examined"] == len(d["keys_examined"])
+    for f, d in files:
         s = probe.summary([str(f)])
         assert probe.table_row(f.name, s) in doc
         out.append((d, s))

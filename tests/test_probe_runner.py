@@ -26,6 +26,7 @@ def test_a_probe_records_each_firing_stores_the_rows_beside_the_kept_ones_and_re
     assert res["examined"] == 1 and res["keys_examined"] == [24]
     assert [t["k"] for t in res["touched"]] == [24] and res["touched"][0]["fired"]
     assert True in calls and False in calls          # the rule on, then off for the same log again
+    assert res["refused"] == res["refused_off"] == []
     (row,), (off,) = res["rows"], res["rows_off"]
     assert row["k"] == off["k"] == 24 and row["kept_row"]["k"] == 24 and row["kept_json"]
     assert json.loads(out.read_text())["examined"] == 1
