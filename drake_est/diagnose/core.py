@@ -2400,6 +2400,82 @@ def mark_not_separated_under_misfit(steps, unexplained, min_gain_not_white=MIN_G
     return marked
 
 
+#: seventy-second round: on a joint whose final residual still depends on the velocity, the position laws are held
+#: against a free friction curve of the speed in their place (:func:`mark_position_laws_within_speed_curve`)
+POSITION_LAWS_AGAINST_SPEED_CURVE = True
+
+
+def position_laws_not_separated_from_speed_curve(prep, model, fit, j, sigma) -> dict | None:
+    """The position laws (:data:`~drake_est.diagnose.competition.POSITION_LAWS`) of joint ``j`` in the final ``model``
+    against a free friction curve of the joint's speed in their place
+    (:func:`~drake_est.diagnose.competition.speed_law_nuisance` with spread knots: hat functions of |qd| per
+    direction, which hold one Coulomb level per direction and a speed law of any shape over the selected speeds).
+    Returns what the comparison read when the held-out blocks do not show the final model (``fit``) predicting the
+    joint better than the curve's (:func:`~drake_est.diagnose.competition.paired_block_test`, p >= :data:`PAIRED_ALPHA`),
+    else None (also when the joint holds no position law or the curve cannot be built)."""
+    laws = [e for e in model.own(j) if e.effect in comp.POSITION_LAWS]
+    if not laws:
+        return None
+    N = comp.speed_law_nuisance(prep, j, spread=True)
+    if N is None or not np.all(np.isfinite(N)):
+        return None
+    curve = det.Extension("stribeck", j, {j: N}, [f"curve_{i}" for i in range(N.shape[1])],
+                          {"effect": "stribeck", "free_speed_curve": True})
+    alt = Model(prep, [x for x in model.exts if not any(x is e for e in laws)] + [curve]).fit(sigma)
+    paired = comp.paired_block_test(prep, alt, fit, [j])
+    if paired["p_value"] < PAIRED_ALPHA:
+        return None
+    return {"position_laws": [e.effect for e in laws], "speed_curve_columns": int(N.shape[1]),
+            "heldout_rmse": _val_metrics(prep, fit, [j])["rmse"],
+            "heldout_rmse_speed_curve_in_their_place": _val_metrics(prep, alt, [j])["rmse"],
+            "paired_p_value": float(paired["p_value"]), "paired_groups": paired["groups"],
+            "groups_final_model_better": paired["groups_better"]}
+
+
+def mark_position_laws_within_speed_curve(prep, model, fit, steps, unexplained, sigma) -> list:
+    """Position laws named where the speed may be the cause.  In point-to-point moves each position is passed at its
+    own speed, so a speed law's residual is a function of position too; where no Stribeck law is named on a joint (the
+    detector does not run when the selected speeds span less than a factor 3, or a level took its place) position
+    laws take that residual.  On a joint of the final ``model`` with a position law, no Stribeck finding and an
+    ``unexplained`` entry on the velocity, :func:`position_laws_not_separated_from_speed_curve` holds the joint's
+    position laws, all at once, against a free speed curve in their place; when the held-out blocks do not separate
+    the two models, each position law's step is marked ambiguous with ``stribeck`` (loop spec 19899: an asymmetric
+    level beside a Stribeck law at 50 Hz, speeds within a factor 3, named as a position load and a position friction;
+    the curve in their place, paired p = 0.053; spec 25506: a load beside Stribeck at 10 Hz, a position friction named
+    outright, p = 0.072).  The model is not changed.  Returns the marked steps."""
+    if not POSITION_LAWS_AGAINST_SPEED_CURVE:
+        return []
+    speed = {int(u["joint"]) for u in unexplained if u.get("variable") == "velocity" and u.get("joint") is not None}
+    marked = []
+    for j in sorted(speed):
+        if j not in prep.joints or any(x.effect == "stribeck" for x in model.own(j)):
+            continue
+        got = position_laws_not_separated_from_speed_curve(prep, model, fit, j, sigma)
+        if got is None:
+            continue
+        reason = (f"the held-out blocks do not show the final model predicting joint {j} better than a free friction "
+                  f"curve of its speed in the place of its position laws ({', '.join(got['position_laws'])}): "
+                  f"held-out RMSE {got['heldout_rmse']:.3g} against "
+                  f"{got['heldout_rmse_speed_curve_in_their_place']:.3g} with the curve, better in "
+                  f"{got['groups_final_model_better']} of {got['paired_groups']} groups (paired p = "
+                  f"{got['paired_p_value']:.2g}), and the final residual still depends on the velocity: where each "
+                  "position is passed at its own speed, a speed law (stribeck) leaves the same residual")
+        for st in steps:
+            e = st.ext
+            if e.shared or e.joint != j or e.effect not in comp.POSITION_LAWS:
+                continue
+            c = st.competition
+            had = comp.ambiguous_rivals(c) if c.get("ambiguous") else []
+            if "stribeck" in had:
+                continue
+            st.competition = {**c, "ambiguous": True, "ambiguous_with": had + ["stribeck"],
+                              "speed_curve_in_place": got,
+                              "reason": (f"{c.get('reason', '')}; {reason}".lstrip("; ") if c.get("ambiguous")
+                                         else reason)}
+            marked.append(st)
+    return marked
+
+
 #: the vocabulary law each block of a free function of the state (:func:`~drake_est.diagnose.competition.state_blocks`)
 #: stands for; the other blocks (inertia, jerk, reversal transients) name no vocabulary effect
 STATE_BLOCK_EFFECTS = {"load": "position_dependent_load", "position_friction": "position_dependent_friction",
@@ -2871,6 +2947,7 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
                 mark_level_within_rival_pair(prep, model, out[3], unexplained, out[7])
                 mark_not_separated_under_misfit(out[3], unexplained)
                 mark_disturbance_confounded_with_state(prep, model, out[3], alpha, min_gain)
+                mark_position_laws_within_speed_curve(prep, model, fit, out[3], unexplained, out[7])
                 break
             effect, joint, why = hit
             out = close_and_search(effect, joint, {"effect": effect, "joint": int(joint), **why})
