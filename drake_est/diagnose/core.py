@@ -1260,6 +1260,27 @@ def motion_line_gate(prep, alpha: float = ALPHA, min_gain: float = MIN_GAIN) -> 
     return frozenset(out)
 
 
+#: seventy-third round (trial): a finding the round run again without it does not find significant is also tested as
+#: it stands in the model (:func:`_own_finding_given_others`)
+OWN_FINDING_IN_ITS_CHECK = True
+
+
+def _own_finding_given_others(prep, m0, f0, sigma, e, alpha, min_gain, own):
+    """The check of :func:`finding_to_set_aside` runs the candidates again on the model without the finding ``e``,
+    each detected afresh on that model's residual.  A fresh detection may pick another shape than the finding's (a
+    position law's number of kernels is chosen by an inner split of the residual alone, not beside the other findings'
+    columns), and a shape that the joint fit beside those columns does not carry can predict the held-out data worse
+    than the model without it (loop spec 11558: a load beside Stribeck at 1000 Hz; the load as accepted, 16 kernels,
+    lowers the held-out RMSE by 54 % given a drift and a level, the fresh one, 32 kernels, raises it by 54 %, and the
+    load was set aside as not significant).  When the fresh one is not significant, ``e`` itself is evaluated given
+    the others (:func:`_evaluate`): ``[(e, test, fit1, model1)]`` when it passes every test, else ``own``."""
+    mine = _evaluate(prep, m0, f0, sigma, e, alpha, min_gain, {})
+    if not mine[1]["significant"]:
+        return own
+    mine[1]["as_accepted"] = True
+    return [mine]
+
+
 def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
     """Each accepted finding must still be the best explanation of its joint's residual when all the *other*
     findings are in the model (the forward search accepts greedily: a first finding that only stood in for
@@ -1283,6 +1304,8 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
         results = [r for r in _round(prep, m0, f0, sigma, acc, alpha, min_gain)
                    if not r[0].shared and r[0].joint == e.joint]
         own = comp.better_first(r for r in results if r[0].effect == e.effect)
+        if OWN_FINDING_IN_ITS_CHECK and (not own or not own[0][1]["significant"]):
+            own = _own_finding_given_others(prep, m0, f0, sigma, e, alpha, min_gain, own)
         if not own or not own[0][1]["significant"]:
             return e.effect, e.joint, {"reason": "not significant given the other findings",
                                        "p_value": own[0][1]["p_value"] if own else None}
