@@ -117,19 +117,27 @@ def against_off_row(name: str, s: dict) -> str:
             f"{len(s['oov_unexplained_lost'])} | {len(s['outright_lost'])} | {mended} | {broken} |")
 
 
-def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "--against-off":
+def against_off_cli(argv) -> bool:
+    """``--against-off A.json ...`` (:func:`against_off`, as JSON) and ``--against-off-rows A.json ...`` (the docs'
+    table) for every probe that diagnoses the fired logs again with the rule off; False when ``argv`` asks for
+    neither."""
+    if not argv or argv[0] not in ("--against-off", "--against-off-rows"):
+        return False
+    if argv[0] == "--against-off":
         if len(argv) < 2:
             raise SystemExit("--against-off: give the probe's JSON files")
         print(json.dumps(against_off(argv[1:]), indent=1))
-        return
-    if argv and argv[0] == "--against-off-rows":
-        print(AGAINST_OFF_HEADER)
-        for p in argv[1:]:
-            print(against_off_row(os.path.basename(p), against_off([p])))
-        return
-    probe_main(argv, __doc__, functools.partial(keys_cli, seed=71), run)
+        return True
+    print(AGAINST_OFF_HEADER)
+    for p in argv[1:]:
+        print(against_off_row(os.path.basename(p), against_off([p])))
+    return True
+
+
+def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not against_off_cli(argv):
+        probe_main(argv, __doc__, functools.partial(keys_cli, seed=71), run)
 
 
 if __name__ == "__main__":

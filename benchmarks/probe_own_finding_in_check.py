@@ -2,8 +2,8 @@
 
 ``core.finding_to_set_aside`` runs the round again on the model without each finding, and sets the finding aside
 when the fresh candidate of its effect is not significant there.  The rule (``core._own_finding_given_others``,
-switched on by ``core.OWN_FINDING_IN_ITS_CHECK``; rule: ``benchmarks/results/diagnose_own_finding_in_check_round73_rule.txt``)
-then evaluates the finding as accepted, given the others, and keeps it in the check when it passes the round's tests
+switched on by ``core.OWN_FINDING_IN_ITS_CHECK``; rule:
+``benchmarks/results/diagnose_own_finding_in_check_round73_rule.txt``) then evaluates the finding as accepted, given the others, and keeps it in the check when it passes the round's tests
 (loop spec 11558: a 16-kernel load set aside because the fresh load, 32 kernels, predicted the held-out data worse).
 For each kept log given, this probe diagnoses it with the rule on, records where the rule kept a finding in its
 check, and there diagnoses it again with the rule off on the same machine (``rows_off``).
@@ -20,13 +20,14 @@ rows where the rule fired, judged against their rule-off rows (``probe_held_back
 from __future__ import annotations
 
 import functools
-import json
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from probe_held_back_rival import AGAINST_OFF_HEADER, against_off, against_off_row  # noqa: E402
+# against_off, against_off_row and the header: this probe's judging and docs table (its tests read them here)
+from probe_held_back_rival import (AGAINST_OFF_HEADER, against_off, against_off_cli,  # noqa: E402,F401
+                                   against_off_row)
 from probe_pair_rescue import keys_cli, row_class  # noqa: E402
 from probe_runner import probe_main, run_rule_probe  # noqa: E402
 
@@ -49,17 +50,8 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "--against-off":
-        if len(argv) < 2:
-            raise SystemExit("--against-off: give the probe's JSON files")
-        print(json.dumps(against_off(argv[1:]), indent=1))
-        return
-    if argv and argv[0] == "--against-off-rows":
-        print(AGAINST_OFF_HEADER)
-        for p in argv[1:]:
-            print(against_off_row(os.path.basename(p), against_off([p])))
-        return
-    probe_main(argv, __doc__, functools.partial(keys_cli, seed=73), run)
+    if not against_off_cli(argv):
+        probe_main(argv, __doc__, functools.partial(keys_cli, seed=73), run)
 
 
 if __name__ == "__main__":

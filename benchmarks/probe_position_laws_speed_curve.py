@@ -19,14 +19,15 @@ probe, ``probe_held_back_rival.against_off``).
 """
 from __future__ import annotations
 
-import json
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_diagnose_testbench as B  # noqa: E402
-from probe_held_back_rival import AGAINST_OFF_HEADER, against_off, against_off_row  # noqa: E402
+# against_off, against_off_row and the header: this probe's judging and docs table (its tests read them here)
+from probe_held_back_rival import (AGAINST_OFF_HEADER, against_off, against_off_cli,  # noqa: E402,F401
+                                   against_off_row)
 from probe_pair_rescue import row_class  # noqa: E402
 from probe_runner import probe_main, run_rule_probe  # noqa: E402
 
@@ -82,17 +83,8 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "--against-off":
-        if len(argv) < 2:
-            raise SystemExit("--against-off: give the probe's JSON files")
-        print(json.dumps(against_off(argv[1:]), indent=1))
-        return
-    if argv and argv[0] == "--against-off-rows":
-        print(AGAINST_OFF_HEADER)
-        for p in argv[1:]:
-            print(against_off_row(os.path.basename(p), against_off([p])))
-        return
-    probe_main(argv, __doc__, keys_cli, run)
+    if not against_off_cli(argv):
+        probe_main(argv, __doc__, keys_cli, run)
 
 
 if __name__ == "__main__":

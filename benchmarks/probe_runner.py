@@ -34,7 +34,8 @@ def run_rule_probe(out_path: str, keys, family: str, *, rule: str, func: str, re
     ``record(result, args, kwargs)`` returns what to store of one call (None: the rule did not fire there).  The logs
     where it fired are listed under ``touched`` (``hits_key``: the records) and their rows stored with ``kept_json`` and
     ``kept_row``; ``compare_off``: such a log is diagnosed again with the rule off, its rows stored under ``rows_off``
-    (the same machine's last digits), its refusals under ``refused_off``.  ``row_class(family, kept_row)``: a class counted under ``classes_examined``.
+    (the same machine's last digits), its refusals under ``refused_off``.  ``row_class(family, kept_row)``: a class
+    counted under ``classes_examined``.
     Writes ``out_path`` every ten logs (``examined`` says how far a stopped run got) and at the end."""
     from drake_est.diagnose import core
     kept = kept_rows(family, keys)

@@ -2332,6 +2332,17 @@ def _joint_candidates(prep, model, fit, j, accepted):
             if not c.shared and c.joint == j and list(c.cols) == [j]]
 
 
+def _add_rivals(st, new, key, info, reason) -> None:
+    """Mark the step ``st`` ambiguous with the rivals ``new`` (after those it already had), store ``info`` under
+    ``key`` of its competition and add ``reason`` to the competition's reason (the final marks that turn a named
+    finding ambiguous: :func:`mark_level_within_rival_pair`, :func:`mark_disturbance_confounded_with_state`,
+    :func:`mark_position_laws_within_speed_curve`)."""
+    c = st.competition
+    had = comp.ambiguous_rivals(c) if c.get("ambiguous") else []
+    st.competition = {**c, "ambiguous": True, "ambiguous_with": had + list(new), key: info,
+                      "reason": f"{c.get('reason', '')}; {reason}".lstrip("; ") if c.get("ambiguous") else reason}
+
+
 def mark_level_within_rival_pair(prep, model, steps, unexplained, sigma) -> list:
     """An asymmetric Coulomb level named on a joint whose final residual holds structure (``unexplained``), against a
     rival that contains it (a position load: its kernels sum to a constant over the positions visited,
@@ -2381,7 +2392,6 @@ def mark_level_within_rival_pair(prep, model, steps, unexplained, sigma) -> list
                 continue
             pair = [rv.effect] + ([rp[1].effect] if rp[1] is not None else [])
             lpair = [e.effect] + ([lv[1].effect] if lv[1] is not None else [])
-            c = st.competition
             info = {"rival_pair": pair, "heldout_rmse_rival_pair": float(rp[0]), "level_pair": lpair,
                     "heldout_rmse_level_pair": float(lv[0]), "paired_p_value": float(paired["p_value"]),
                     "paired_groups": paired["groups"], "groups_rival_pair_better": paired["groups_better"]}
@@ -2390,12 +2400,7 @@ def mark_level_within_rival_pair(prep, model, steps, unexplained, sigma) -> list
                       f"held-out groups, paired p = {paired['p_value']:.2g}) while the final residual still holds "
                       f"structure: {rv.effect} holds the level, and the search chose the level because neither law "
                       "of that pair wins a round alone")
-            if c.get("ambiguous"):
-                st.competition = {**c, "ambiguous_with": had + [rv.effect], "rival_pair": info,
-                                  "reason": f"{c.get('reason', '')}; {reason}".lstrip("; ")}
-            else:
-                st.competition = {**c, "ambiguous": True, "ambiguous_with": [rv.effect], "rival_pair": info,
-                                  "reason": reason}
+            _add_rivals(st, [rv.effect], "rival_pair", info, reason)
             had = comp.ambiguous_rivals(st.competition)
             marked.append(st)
     return marked
@@ -2435,8 +2440,8 @@ def position_laws_not_separated_from_speed_curve(prep, model, fit, j, sigma) -> 
     (:func:`~drake_est.diagnose.competition.speed_law_nuisance` with spread knots: hat functions of |qd| per
     direction, which hold one Coulomb level per direction and a speed law of any shape over the selected speeds).
     Returns what the comparison read when the held-out blocks do not show the final model (``fit``) predicting the
-    joint better than the curve's (:func:`~drake_est.diagnose.competition.paired_block_test`, p >= :data:`PAIRED_ALPHA`),
-    else None (also when the joint holds no position law or the curve cannot be built)."""
+    joint better than the curve's (:func:`~drake_est.diagnose.competition.paired_block_test`, p >=
+    :data:`PAIRED_ALPHA`), else None (also when the joint holds no position law or the curve cannot be built)."""
     laws = [e for e in model.own(j) if e.effect in comp.POSITION_LAWS]
     if not laws:
         return None
@@ -2488,14 +2493,9 @@ def mark_position_laws_within_speed_curve(prep, model, fit, steps, unexplained, 
             e = st.ext
             if e.shared or e.joint != j or e.effect not in comp.POSITION_LAWS:
                 continue
-            c = st.competition
-            had = comp.ambiguous_rivals(c) if c.get("ambiguous") else []
-            if "stribeck" in had:
+            if st.competition.get("ambiguous") and "stribeck" in comp.ambiguous_rivals(st.competition):
                 continue
-            st.competition = {**c, "ambiguous": True, "ambiguous_with": had + ["stribeck"],
-                              "speed_curve_in_place": got,
-                              "reason": (f"{c.get('reason', '')}; {reason}".lstrip("; ") if c.get("ambiguous")
-                                         else reason)}
+            _add_rivals(st, ["stribeck"], "speed_curve_in_place", got, reason)
             marked.append(st)
     return marked
 
@@ -2559,12 +2559,7 @@ def mark_disturbance_confounded_with_state(prep, model, steps, alpha, min_gain) 
                 "heldout_rmse_reduction_alone": float(own), "state_heldout_rmse_reduction_alone": float(state)}
         if e.effect == "time_periodic_disturbance":
             info["disturbance_given_state"] = info["finding_given_state"]
-        if c.get("ambiguous"):
-            st.competition = {**c, "ambiguous_with": had + new, "confounded_with_state": info,
-                              "reason": f"{c.get('reason', '')}; {reason}".lstrip("; ")}
-        else:
-            st.competition = {**c, "ambiguous": True, "ambiguous_with": new, "confounded_with_state": info,
-                              "reason": reason}
+        _add_rivals(st, new, "confounded_with_state", info, reason)
         marked.append(st)
     return marked
 
