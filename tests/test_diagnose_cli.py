@@ -82,6 +82,7 @@ def test_cli_log_without_torque_exits_2(tmp_path, capsys):
     assert "tau1" in capsys.readouterr().err
 
 
+@pytest.mark.long
 def test_run_demo(tmp_path):
     from drake_est.diagnose import run_demo
     rep = run_demo(tmp_path, duration=60.0)

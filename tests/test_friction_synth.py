@@ -91,6 +91,7 @@ def test_motor_position_ripple_joint1():
     assert ext.validation["rmse"] < 1.15 * sigma
 
 
+@pytest.mark.long
 def test_multi_joint_friction_with_gravity_estimated_jointly():
     """Joints 2 and 3 excited together with an unmodeled payload: friction and the gravity
     parameters (mass moments of all links, Sec. 9.2) are estimated at once; the held-out
