@@ -1282,6 +1282,29 @@ def _own_finding_given_others(prep, m0, f0, sigma, e, alpha, min_gain, own):
     return [mine]
 
 
+#: seventy-fourth round: a position law whose fresh re-detection in :func:`finding_to_set_aside` chose another number
+#: of kernels than the finding's, and is not significant, is tested as accepted (:func:`_position_law_as_accepted`)
+POSITION_LAW_AS_ACCEPTED_IN_ITS_CHECK = False
+
+
+def _position_law_as_accepted(prep, m0, f0, sigma, e, alpha, min_gain, own):
+    """The seventy-third round's test of a finding as it stands (:func:`_own_finding_given_others`), for the one case
+    its reason covers: ``e`` is a position law (:data:`~drake_est.diagnose.detectors.POSITION_KERNEL_LAWS`) and the
+    fresh candidate of its effect, not significant given the other findings, has another number of kernels than
+    ``e``.  The kernel count is a nuisance choice of the detector (an inner split of a quarter of the training rows
+    each way), not the hypothesis under test, which is whether the joint has that position law given the others: the
+    kernel count it was accepted with is tested as well (loop spec 11558: the load as accepted, 16 kernels, lowers
+    the held-out RMSE by 54 % given a drift and a level; the fresh one, 32 kernels, raises it by 54 %).  Other
+    effects, whose fresh detection is the same test as at their acceptance or a scan (a frequency, a change time),
+    are checked as before (the seventy-third round's rule gave 4035 a wrong name through a disturbance's scan).
+    Returns ``own`` unchanged when the case does not apply or ``e`` fails a test."""
+    if e.effect not in det.POSITION_KERNEL_LAWS or not own or own[0][1]["significant"]:
+        return own
+    if own[0][0].evidence.get("n_kernels") == e.evidence.get("n_kernels"):
+        return own
+    return _own_finding_given_others(prep, m0, f0, sigma, e, alpha, min_gain, own)
+
+
 def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
     """Each accepted finding must still be the best explanation of its joint's residual when all the *other*
     findings are in the model (the forward search accepts greedily: a first finding that only stood in for
@@ -1307,6 +1330,8 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
         own = comp.better_first(r for r in results if r[0].effect == e.effect)
         if OWN_FINDING_IN_ITS_CHECK and (not own or not own[0][1]["significant"]):
             own = _own_finding_given_others(prep, m0, f0, sigma, e, alpha, min_gain, own)
+        elif POSITION_LAW_AS_ACCEPTED_IN_ITS_CHECK:
+            own = _position_law_as_accepted(prep, m0, f0, sigma, e, alpha, min_gain, own)
         if not own or not own[0][1]["significant"]:
             return e.effect, e.joint, {"reason": "not significant given the other findings",
                                        "p_value": own[0][1]["p_value"] if own else None}
