@@ -1284,7 +1284,7 @@ def _own_finding_given_others(prep, m0, f0, sigma, e, alpha, min_gain, own):
 
 #: seventy-fourth round: a position law whose fresh re-detection in :func:`finding_to_set_aside` chose another number
 #: of kernels than the finding's, and is not significant, is tested as accepted (:func:`_position_law_as_accepted`)
-POSITION_LAW_AS_ACCEPTED_IN_ITS_CHECK = False
+POSITION_LAW_AS_ACCEPTED_IN_ITS_CHECK = True
 
 
 def _position_law_as_accepted(prep, m0, f0, sigma, e, alpha, min_gain, own):
