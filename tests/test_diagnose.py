@@ -66,8 +66,10 @@ def test_none_log_gives_no_finding():
     assert set(d["data"]["skipped_joints"]) == {"2", "3", "4", "5", "6"}
 
 
-@pytest.mark.parametrize("name", ["position_dependent_friction", "motor_position_ripple",
-                                  pytest.param("asymmetric_coulomb", marks=pytest.mark.long), "abrupt_change",
+@pytest.mark.parametrize("name", ["position_dependent_friction",
+                                  pytest.param("motor_position_ripple", marks=pytest.mark.long),
+                                  pytest.param("asymmetric_coulomb", marks=pytest.mark.long),
+                                  pytest.param("abrupt_change", marks=pytest.mark.long),
                                   # ~30 s (a long log); an energy effect alone is named in the default
                                   # multi-log test (test_energy_state_restarts_per_log_in_the_diagnosis)
                                   pytest.param("energy_dependent_friction", marks=pytest.mark.slow)])
@@ -161,6 +163,7 @@ def test_other_sample_rate_and_generic_robot():
     assert rep.findings and rep.findings[0]["effect"] == "position_dependent_friction"
 
 
+@pytest.mark.long
 def test_report_shape_and_simulation(tmp_path):
     log, truth = make("asymmetric_coulomb")
     rep = diagnose(log, robot="irb140", seed=0)

@@ -168,6 +168,7 @@ def _findings(log):
     return [(f["effect"], f["joint"]) for f in d["findings"]], d
 
 
+@pytest.mark.long
 def test_irb140_joints_2_3_without_effect_name_nothing_but_the_load():
     log, truth = _synth("none", (2, 3), 11)
     f, d = _findings(log)

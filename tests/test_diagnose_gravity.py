@@ -44,7 +44,7 @@ def test_gravity_joint_without_effect_names_only_the_load(joint):
     assert [x for x in f if x[0] != "position_dependent_load"] == [], f
 
 
-@pytest.mark.parametrize("joint", [2, pytest.param(3, marks=pytest.mark.long)])
+@pytest.mark.parametrize("joint", [pytest.param(2, marks=pytest.mark.long), pytest.param(3, marks=pytest.mark.long)])
 def test_gravity_joint_with_ripple_names_the_ripple(joint):
     f = _findings("motor_position_ripple", joint)
     assert ("motor_position_ripple", joint) in f, f

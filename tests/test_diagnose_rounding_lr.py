@@ -52,6 +52,7 @@ def test_the_bound_is_the_likelihood_ratio_test_at_alpha():
     assert core.rounding_lr_bound(2, alpha=1e-2) < core.rounding_lr_bound(2)
 
 
+@pytest.mark.long
 def test_a_stribeck_law_within_chance_on_the_readings_is_set_aside():
     # fresh loop spec 24500: a third-size abrupt change at 250 Hz over 300 s with a 0.165 N m torque ADC.  Before the
     # round a Stribeck law was named beside the change (ambiguous with an energy drift): 26 % lower least-squares
