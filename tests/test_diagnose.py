@@ -85,6 +85,7 @@ def test_single_joint_effect_is_found(name):
     assert _final_rmse(rep, truth["joints"]) <= 1.2 * truth["noise_std"]
 
 
+@pytest.mark.long     # shares the ripple log of the long single-effect case
 def test_ripple_frequency_without_gear_ratio():
     """The generic robot knows no gear ratio; the LPV spectral detector still finds the ripple
     frequency (cycles per arm radian = harmonic * gear / (2 pi))."""
@@ -97,6 +98,7 @@ def test_ripple_frequency_without_gear_ratio():
     assert f["evidence"]["amplitude_slope_vs_speed"] < 0
 
 
+@pytest.mark.long     # shares the abrupt-change log of the long single-effect case
 def test_abrupt_change_time_and_levels():
     rep, truth = report("abrupt_change")
     p = rep.findings[0]["parameters"]

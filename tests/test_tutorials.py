@@ -5,9 +5,10 @@ from pathlib import Path
 import pytest
 
 TUTORIALS = sorted((Path(__file__).resolve().parents[1] / "tutorials").glob("*.ipynb"))
-#: the fleet and real-data notebooks and the three slowest others, each over 15 s on a 2-core machine: `long` cases (CI runs them after the
+#: the fleet and real-data notebooks and the slowest others, each over 12 s on a 2-core machine: `long` cases (CI runs them after the
 #: default run, README Quickstart), which keeps the default run well under 15 minutes
-LONG_TUTORIALS = {"10_diagnose", "20_friction_identification", "70_ilqr_mbrl", "80_real_cogging", "83_real_emps",
+LONG_TUTORIALS = {"10_diagnose", "20_friction_identification", "40_lpv_spectral", "50_sensor_calibration",
+                  "65_neural_dynamics", "70_ilqr_mbrl", "80_real_cogging", "82_real_linescanner", "83_real_emps",
                   "84_real_kuka", "90_fleet"}
 
 
