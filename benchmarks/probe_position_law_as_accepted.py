@@ -20,12 +20,13 @@ check, so the selection is the kept rows with a position law among their set-asi
 """
 from __future__ import annotations
 
+import functools
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-import bench_diagnose_testbench as B  # noqa: E402
+import probe_position_laws_speed_curve as speed_curve  # noqa: E402
 # against_off, against_off_row and the header: this probe's judging and docs table (its tests read them here)
 from probe_held_back_rival import (AGAINST_OFF_HEADER, against_off, against_off_cli,  # noqa: E402,F401
                                    against_off_row)
@@ -33,28 +34,15 @@ from probe_own_finding_in_check import _kept  # noqa: E402
 from probe_pair_rescue import row_class  # noqa: E402
 from probe_runner import probe_main, run_rule_probe  # noqa: E402
 
-POSITION_LAWS = ("position_dependent_friction", "position_dependent_load")
-
 
 def touchable(row) -> bool:
     """Whether the rule can change this kept row: a position law among its set-aside findings."""
-    return any(p in (row.get("set_aside") or []) for p in POSITION_LAWS)
+    return any(p in (row.get("set_aside") or []) for p in speed_curve.POSITION_LAWS)
 
 
-def touchable_keys(family: str = "loop") -> list:
-    """The keys of ``family``'s kept rows the rule can change (:func:`touchable`), in order."""
-    return sorted(k for (f, _, k), (_, r) in B.kept_rows_naming("any").items() if f == family and touchable(r))
-
-
-def keys_cli(argv):
-    """``--keys touchable [--family=F]``: print the keys of :func:`touchable_keys`."""
-    if len(argv) < 2 or argv[1] != "touchable":
-        raise SystemExit("--keys: the only class is 'touchable'")
-    family = "loop"
-    for a in argv[2:]:
-        if a.startswith("--family="):
-            family = a.split("=", 1)[1]
-    print(" ".join(map(str, touchable_keys(family))))
+# the seventy-second round's key selection, with this round's predicate
+touchable_keys = functools.partial(speed_curve.touchable_keys, touchable=touchable)
+keys_cli = functools.partial(speed_curve.keys_cli, touchable=touchable)
 
 
 def run(out_path: str, keys, family: str = "loop") -> dict:

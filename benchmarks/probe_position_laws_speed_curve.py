@@ -50,20 +50,21 @@ def touchable(row) -> bool:
     return "velocity" in (row.get("unexplained") or []) and any(h in POSITION_LAWS for h in finding_heads(row["got"]))
 
 
-def touchable_keys(family: str = "loop") -> list:
-    """The keys of ``family``'s kept rows the rule can change (:func:`touchable`), in order."""
+def touchable_keys(family: str = "loop", touchable=touchable) -> list:
+    """The keys of ``family``'s kept rows the rule can change (``touchable(row)``, default :func:`touchable`), in
+    order (also the seventy-fourth round's probe, with its own predicate)."""
     return sorted(k for (f, _, k), (_, r) in B.kept_rows_naming("any").items() if f == family and touchable(r))
 
 
-def keys_cli(argv):
-    """``--keys touchable [--family F]``: print the keys of :func:`touchable_keys`."""
+def keys_cli(argv, touchable=touchable):
+    """``--keys touchable [--family=F]``: print the keys of :func:`touchable_keys` for the predicate ``touchable``."""
     if len(argv) < 2 or argv[1] != "touchable":
         raise SystemExit("--keys: the only class is 'touchable'")
     family = "loop"
     for a in argv[2:]:
         if a.startswith("--family="):
             family = a.split("=", 1)[1]
-    print(" ".join(map(str, touchable_keys(family))))
+    print(" ".join(map(str, touchable_keys(family, touchable))))
 
 
 def _marked(got, a, kw):
