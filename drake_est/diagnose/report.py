@@ -349,7 +349,12 @@ def _inertia_backfit_lines(p: dict) -> list:
                    f"beside them as {_fmt(float(p['J']))} (an unmodeled torque biases the first fit of "
                    "closed-loop data)")
     w = p.get("J_backfit_withheld")
-    if isinstance(w, dict):
+    if isinstance(w, dict) and w.get("reason") == "nonpositive":
+        out.append(f"J kept at {_fmt(float(p['J']))}: re-estimating it beside the findings gave "
+                   f"{_fmt(float(w['J_moved']))} +- {_fmt(float(w['standard_error']))}, not a positive inertia (the "
+                   "acceleration column then fits something else, e.g. a friction law that falls steeply with the "
+                   "speed, seen through a speed estimate that lags at a low sample rate)")
+    elif isinstance(w, dict):
         out.append(f"J kept at {_fmt(float(p['J']))}: re-estimating it beside the findings gave "
                    f"{_fmt(float(w['J_moved']))}, but the same fit with a free friction curve of the speed gives "
                    f"{_fmt(float(w['J_speed_curve']))} +- {_fmt(float(w['standard_error']))}, which contradicts "
