@@ -65,7 +65,7 @@ INERTIA_BACKFIT_REL = 0.05
 #: estimate beside a free friction curve of the speed (:func:`inertia_move_contradicted`)
 INERTIA_BACKFIT_LARGE = 2.0
 #: a correction that would move a positive J to J <= 0 is withheld (:func:`backfit_inertia`; seventy-fifth round)
-INERTIA_BACKFIT_KEEPS_SIGN = False
+INERTIA_BACKFIT_KEEPS_SIGN = True
 
 
 def _ridge_lstsq(A, y, penalize):
