@@ -14,12 +14,21 @@ move (``inertia_backfit``: [J from prepare, J after]), so the selection is those
 
 ``--against-off``: the rows where the rule fired, judged against their rule-off rows
 (``probe_held_back_rival.against_off``).
+
+Kept rows from before the thirty-sixth round do not record the backfit's move.  ``--screen OUT.json K...`` runs, with
+the rule off, only as far as the inertia backfit of each log (the first searches, no checks of the final model) and
+writes {k: [J, J after the backfit] or null}; the keys whose move crosses zero are then probed as above:
+
+    python benchmarks/probe_inertia_backfit_sign.py --keys unrecorded > ku.txt    # loop rows without the record
+    OPENBLAS_NUM_THREADS=1 python benchmarks/probe_inertia_backfit_sign.py --screen S.json $(cat ku.txt)
+    python benchmarks/probe_inertia_backfit_sign.py --crossed S.json              # the keys to probe
 """
 from __future__ import annotations
 
 import functools
 import os
 import sys
+from pathlib import Path
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
@@ -40,6 +49,81 @@ touchable_keys = functools.partial(speed_curve.touchable_keys, touchable=moved_t
 keys_cli = functools.partial(speed_curve.keys_cli, touchable=moved_through_zero)
 
 
+def unrecorded_keys(family: str = "loop") -> list:
+    """The keys of ``family``'s kept rows that hold no ``inertia_backfit`` record and come from a block JSON first
+    committed before the rows recorded it (5e2e280, the thirty-sixth round): their backfit's move is unknown."""
+    import subprocess
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    git = functools.partial(subprocess.run, capture_output=True, text=True, cwd=root, check=True, shell=True)
+    before = set(git("git rev-list 5e2e280").stdout.split())
+    added, cur = {}, None
+    for line in git("git log --diff-filter=A --format=@%H --name-only -- benchmarks/results").stdout.splitlines():
+        if line.startswith("@"):
+            cur = line[1:]
+        elif line.strip():
+            added[os.path.basename(line.strip())] = cur
+    return sorted(k for (f, _, k), (src, r) in speed_curve.B.kept_rows_naming("any").items()
+                  if f == family and "inertia_backfit" not in r and added.get(os.path.basename(src)) in before)
+
+
+class _Screened(Exception):
+    """Raised once a screened log's backfit has run (or the search went past it without one)."""
+
+
+def screen(out_path: str, keys, family: str = "loop") -> dict:
+    """{k: [J, J after the backfit] or None (the backfit did not move J, or did not run)} of the kept logs ``keys``,
+    each diagnosed with the rule off only as far as the inertia backfit; written to ``out_path`` every 50 logs."""
+    import json
+    from drake_est.diagnose import core, diagnose
+    from drake_est.errors import DataError
+    make = speed_curve.B.loop_cases if family == "loop" else speed_curve.B.cases
+    was_on, bi, fa, tla = (core.INERTIA_BACKFIT_KEEPS_SIGN, core.backfit_inertia, core.finding_to_set_aside,
+                           core.time_law_alternative)
+    got = {}
+
+    def backfit(prep, model, fit):
+        moved = bi(prep, model, fit)
+        got.update({int(j): [float(a), float(b)] for j, (a, b) in moved.items()})
+        raise _Screened
+
+    def stop(*a, **kw):
+        raise _Screened
+
+    res = {"family": family, "screened": {}, "refused": []}
+    core.INERTIA_BACKFIT_KEEPS_SIGN = False
+    core.backfit_inertia, core.finding_to_set_aside, core.time_law_alternative = backfit, stop, stop
+    try:
+        for m, k in enumerate(keys):
+            log, _ = speed_curve.B.family_log(family, make(k + 1)[k])
+            got.clear()
+            try:
+                diagnose(log, robot="generic", seed=0, simulate=False)
+            except _Screened:
+                pass
+            except DataError as e:
+                res["refused"].append({"k": k, "reason": str(e)})
+            res["screened"][str(k)] = {str(j): v for j, v in got.items()} or None
+            if m % 50 == 49:
+                Path(out_path).write_text(json.dumps(res))
+                print(f"screened {m + 1} / {len(keys)}", flush=True)
+    finally:
+        core.INERTIA_BACKFIT_KEEPS_SIGN = was_on
+        core.backfit_inertia, core.finding_to_set_aside, core.time_law_alternative = bi, fa, tla
+    Path(out_path).write_text(json.dumps(res))
+    return res
+
+
+def crossed(paths) -> list:
+    """The screened keys whose backfit moved J from above 0 to 0 or below on some joint."""
+    import json
+    out = set()
+    for p in paths:
+        for k, moves in json.loads(Path(p).read_text())["screened"].items():
+            if moves and any(J > 0 and J_new <= 0 for J, J_new in moves.values()):
+                out.add(int(k))
+    return sorted(out)
+
+
 def _withheld(got, a, kw):
     """The record of one firing: the move withheld (None: the rule did not apply)."""
     if got is None:
@@ -56,7 +140,16 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not against_off_cli(argv):
+    if argv[:2] == ["--keys", "unrecorded"]:
+        print(" ".join(map(str, unrecorded_keys())))
+    elif argv[:1] == ["--screen"]:
+        if len(argv) < 3:
+            raise SystemExit("--screen OUT.json K...: give the output file and the spec numbers")
+        res = screen(argv[1], [int(x) for x in argv[2:]])
+        print(f"screened {len(res['screened'])}, refused {len(res['refused'])}, crossing zero: {crossed([argv[1]])}")
+    elif argv[:1] == ["--crossed"]:
+        print(" ".join(map(str, crossed(argv[1:]))))
+    elif not against_off_cli(argv):
         probe_main(argv, __doc__, keys_cli, run)
 
 

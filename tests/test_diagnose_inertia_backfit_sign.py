@@ -64,3 +64,26 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
     # the selection: every kept row that records a move through zero (the folded rows record none any more)
     assert examined >= set(probe.touchable_keys())
     assert len(examined) == 37 and f"all {len(examined)} kept rows" in " ".join(doc.split())
+
+
+def test_crossed_reads_moves_through_zero_off_a_screen(tmp_path):
+    from conftest import bench_module
+    probe = bench_module("probe_inertia_backfit_sign")
+    p = tmp_path / "s.json"
+    p.write_text('{"screened": {"1": {"1": [0.8, -19.3]}, "2": {"1": [2.8, 2.6]}, "3": null, '
+                 '"4": {"1": [-0.3, -10.9]}, "5": {"1": [1.2, 0.0], "2": [1.0, 1.1]}}}')
+    assert probe.crossed([str(p)]) == [1, 5]
+
+
+@pytest.mark.long
+def test_the_screen_stops_at_the_backfit_and_reports_its_move(tmp_path):
+    # 21549 crosses zero (0.787 -> -19.3); 28500 moves within the sign (2.84 -> 2.62), as their kept rows record
+    from conftest import bench_module
+    probe = bench_module("probe_inertia_backfit_sign")
+    res = probe.screen(str(tmp_path / "s.json"), [21549, 28500])
+    (J, J_new), = res["screened"]["21549"].values()
+    assert J > 0 > J_new
+    (J, J_new), = res["screened"]["28500"].values()
+    assert 0 < J_new < J
+    assert core.INERTIA_BACKFIT_KEEPS_SIGN is True and core.backfit_inertia.__name__ == "backfit_inertia"
+    assert probe.crossed([str(tmp_path / "s.json")]) == [21549]
