@@ -61,9 +61,14 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
         examined |= set(d["keys_examined"])
         assert differences(d) == [], f.name
     assert lost == [21549] and gained_miss <= 0
-    # the selection: every kept row that records a move through zero (the folded rows record none any more)
-    assert examined >= set(probe.touchable_keys())
-    assert len(examined) == 37 and f"all {len(examined)} kept rows" in " ".join(doc.split())
+    # lane a: every kept row that records a move through zero (the folded rows record none any more); lane b: the
+    # crossings the screens of the rows without the record found, but those lane a had examined
+    a = set(files[0][1]["keys_examined"])
+    assert files[0][0].name.endswith("_lane_a.json") and a >= set(probe.touchable_keys())
+    assert len(a) == 37 and f"all {len(a)} kept rows" in " ".join(doc.split())
+    screens = sorted(map(str, files[0][0].parent.glob("diagnose_inertia_backfit_sign_screen_round75_*.json")))
+    assert len(screens) >= 2
+    assert examined - a == set(probe.crossed(screens)) - a
 
 
 def test_crossed_reads_moves_through_zero_off_a_screen(tmp_path):
