@@ -40,9 +40,15 @@ from probe_pair_rescue import row_class  # noqa: E402
 from probe_runner import probe_main, run_rule_probe  # noqa: E402
 
 
+def crosses_zero(moves) -> bool:
+    """Whether {joint: [J, J after the backfit]} (a row's ``inertia_backfit``, a screen's entry) holds a move from
+    J > 0 to J <= 0."""
+    return any(J > 0 and J_new <= 0 for J, J_new in (moves or {}).values())
+
+
 def moved_through_zero(row) -> bool:
     """Whether the kept row records an inertia backfit move from J > 0 to J <= 0 on some joint."""
-    return any(J > 0 and J_new <= 0 for J, J_new in (row.get("inertia_backfit") or {}).values())
+    return crosses_zero(row.get("inertia_backfit"))
 
 
 touchable_keys = functools.partial(speed_curve.touchable_keys, touchable=moved_through_zero)
@@ -116,12 +122,8 @@ def screen(out_path: str, keys, family: str = "loop") -> dict:
 def crossed(paths) -> list:
     """The screened keys whose backfit moved J from above 0 to 0 or below on some joint."""
     import json
-    out = set()
-    for p in paths:
-        for k, moves in json.loads(Path(p).read_text())["screened"].items():
-            if moves and any(J > 0 and J_new <= 0 for J, J_new in moves.values()):
-                out.add(int(k))
-    return sorted(out)
+    return sorted({int(k) for p in paths for k, moves in json.loads(Path(p).read_text())["screened"].items()
+                   if crosses_zero(moves)})
 
 
 def _withheld(got, a, kw):

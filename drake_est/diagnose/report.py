@@ -341,22 +341,23 @@ def _fmt(x):
 
 def _inertia_backfit_lines(p: dict) -> list:
     """Sentences on the inertia backfit of a generic axis (core.backfit_inertia) for report.md, from the nominal
-    parameters of one joint: J moved once the findings were in the model, or a large move withheld
-    (core.inertia_move_contradicted)."""
+    parameters of one joint: J moved once the findings were in the model, or a move withheld (a large one the speed
+    curve contradicts, core.inertia_move_contradicted; one through zero, core.inertia_move_through_zero)."""
     out = []
     if "J_before_backfit" in p:
         out.append(f"J was identified as {_fmt(float(p['J_before_backfit']))} before the findings and re-estimated "
                    f"beside them as {_fmt(float(p['J']))} (an unmodeled torque biases the first fit of "
                    "closed-loop data)")
     w = p.get("J_backfit_withheld")
-    if isinstance(w, dict) and w.get("reason") == "nonpositive":
-        out.append(f"J kept at {_fmt(float(p['J']))}: re-estimating it beside the findings gave "
-                   f"{_fmt(float(w['J_moved']))} +- {_fmt(float(w['standard_error']))}, not a positive inertia (the "
+    if not isinstance(w, dict):
+        return out
+    kept = f"J kept at {_fmt(float(p['J']))}: re-estimating it beside the findings gave {_fmt(float(w['J_moved']))}"
+    if w.get("reason") == "nonpositive":
+        out.append(f"{kept} +- {_fmt(float(w['standard_error']))}, not a positive inertia (the "
                    "acceleration column then fits something else, e.g. a friction law that falls steeply with the "
                    "speed, seen through a speed estimate that lags at a low sample rate)")
-    elif isinstance(w, dict):
-        out.append(f"J kept at {_fmt(float(p['J']))}: re-estimating it beside the findings gave "
-                   f"{_fmt(float(w['J_moved']))}, but the same fit with a free friction curve of the speed gives "
+    else:
+        out.append(f"{kept}, but the same fit with a free friction curve of the speed gives "
                    f"{_fmt(float(w['J_speed_curve']))} +- {_fmt(float(w['standard_error']))}, which contradicts "
                    "the move (a friction law of the speed that no finding holds is then taken for inertia)")
     return out
