@@ -29,15 +29,17 @@ def kept_rows(family: str, keys) -> dict:
 
 
 def run_rule_probe(out_path: str, keys, family: str, *, rule: str, func: str, record, hits_key: str,
-                   row_class=None, compare_off: bool = False) -> dict:
-    """Diagnose the kept logs ``keys`` of ``family`` with ``core.<rule>`` set True and ``core.<func>`` wrapped:
+                   row_class=None, compare_off: bool = False, module: str = "core") -> dict:
+    """Diagnose the kept logs ``keys`` of ``family`` with ``<module>.<rule>`` set True and ``<module>.<func>`` wrapped
+    (``module``: a module of :mod:`drake_est.diagnose`, ``core`` unless given):
     ``record(result, args, kwargs)`` returns what to store of one call (None: the rule did not fire there).  The logs
     where it fired are listed under ``touched`` (``hits_key``: the records) and their rows stored with ``kept_json`` and
     ``kept_row``; ``compare_off``: such a log is diagnosed again with the rule off, its rows stored under ``rows_off``
     (the same machine's last digits), its refusals under ``refused_off``.  ``row_class(family, kept_row)``: a class
     counted under ``classes_examined``.
     Writes ``out_path`` every ten logs (``examined`` says how far a stopped run got) and at the end."""
-    from drake_est.diagnose import core
+    import importlib
+    core = importlib.import_module(f"drake_est.diagnose.{module}")
     kept = kept_rows(family, keys)
     make = B.loop_cases if family == "loop" else B.cases
     was_on, original = getattr(core, rule), getattr(core, func)
