@@ -83,14 +83,20 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 def unexplained_changes(paths) -> dict:
     """Per kind of log (null, out of vocabulary, vocabulary): the fired logs that gain or lose an ``unexplained``
-    entry with the rule on, against their rule-off rows."""
+    entry with the rule on, against their rule-off rows; ``oov_none_off``: the examined out-of-vocabulary logs that
+    end without `unexplained` with the rule off (the rule-off row where it fired, else the kept row, which the rule
+    leaves as it is)."""
     out = {"null_gained": [], "null_lost": [], "oov_gained": [], "oov_lost": [], "vocab_gained": [],
-           "vocab_lost": [], "examined": {}}
+           "vocab_lost": [], "examined": {}, "oov_none_off": 0}
+    kept = speed_curve.B.kept_rows_naming("any")
     for p in paths:
         d = json.load(open(p))
         for c, n in d.get("classes_examined", {}).items():
             out["examined"][c] = out["examined"].get(c, 0) + n
         off = {r["k"]: r for r in d.get("rows_off", [])}
+        for k in d["keys_examined"]:
+            o = off.get(k) or kept[(d["family"], "generic", k)][1]
+            out["oov_none_off"] += row_class("", o) == "oov" and not o["oov_unexplained"]
         for r in d["rows"]:
             o = off.get(r["k"])
             if o is None:

@@ -68,7 +68,7 @@ ADC_GUARD_STEPS = 1.0
 #: short: the one-step guard at longer windows stood for the jerk test's filter error at jumps of the jerk (the
 #: open-loop null spec 101), and at 50 Hz it hid the time shift of quantized out-of-vocabulary logs whose structure
 #: holds 4-65 % of the residual at p < 1e-50 (``benchmarks/results/unexplained_shares_loop3500.json``)
-TIME_SHIFT_NO_ADC_GUARD = False
+TIME_SHIFT_NO_ADC_GUARD = True
 #: harmonics of the rounding error of a quantized torque (:func:`quantization_nuisance`)
 QUANT_HARMONICS = 3
 #: the tests whose nuisance columns include the rounding error of a quantized torque (no ADC guard)
