@@ -45,12 +45,19 @@ keys_cli = functools.partial(speed_curve.keys_cli, touchable=touchable)
 OOV = ("backlash", "compliance", "sensor_delay", "delay")
 
 
-def row_class(family: str, r: dict) -> str:
-    """The probe's class of a kept row: ``null``, ``oov`` (out of vocabulary) or ``vocab``."""
+def kind_of(r: dict) -> str:
+    """The kind of a benchmark row: ``null`` (nothing planted), ``oov`` (a visible out-of-vocabulary effect) or
+    ``vocab`` (the rest, a log whose planted effects are all invisible among them)."""
     return "null" if r["truth"] == "none" else "oov" if r["truth"] in OOV else "vocab"
 
 
+def row_class(family: str, r: dict) -> str:
+    """The probe's class of a kept row (``classes_examined``): its :func:`kind_of`, whatever the family."""
+    return kind_of(r)
+
+
 def _entries(found) -> list:
+    """(joint, variable) of each entry of a ``residual_structure`` result, in its order."""
     return [(int(d["joint"]), d["variable"]) for d in found]
 
 
@@ -96,12 +103,12 @@ def unexplained_changes(paths) -> dict:
         off = {r["k"]: r for r in d.get("rows_off", [])}
         for k in d["keys_examined"]:
             o = off.get(k) or kept[(d["family"], "generic", k)][1]
-            out["oov_none_off"] += row_class("", o) == "oov" and not o["oov_unexplained"]
+            out["oov_none_off"] += kind_of(o) == "oov" and not o["oov_unexplained"]
         for r in d["rows"]:
             o = off.get(r["k"])
             if o is None:
                 continue
-            kind = row_class("", r)
+            kind = kind_of(r)
             if bool(r["unexplained"]) and not o["unexplained"]:
                 out[f"{kind}_gained"].append(r["k"])
             if o["unexplained"] and not r["unexplained"]:

@@ -38,3 +38,22 @@ def test_a_probe_refuses_a_key_without_a_kept_row_and_an_unknown_family():
         runner.kept_rows("testbench", [99999])
     with pytest.raises(SystemExit, match="--family must be loop or testbench"):
         runner.kept_rows("synth", [1])
+
+
+def test_a_probe_switches_a_rule_of_another_module_and_restores_it(tmp_path):
+    # the seventy-sixth round's rule lives in drake_est.diagnose.unexplained, not in core
+    import drake_est.diagnose.unexplained as U
+    runner = bench_module("probe_runner")
+    was, original = U.TIME_SHIFT_NO_ADC_GUARD, U.residual_structure
+    seen = []
+
+    def record(got, a, kw):
+        seen.append(U.TIME_SHIFT_NO_ADC_GUARD)
+        return None                                  # never fires: no rule-off run
+
+    res = runner.run_rule_probe(str(tmp_path / "p.json"), [24], "testbench", rule="TIME_SHIFT_NO_ADC_GUARD",
+                                func="residual_structure", record=record, hits_key="entries", compare_off=True,
+                                module="unexplained")
+    assert U.TIME_SHIFT_NO_ADC_GUARD is was and U.residual_structure is original
+    assert seen and set(seen) == {True}
+    assert res["touched"] == [] and res["rows"] == [] and res["rows_off"] == []
