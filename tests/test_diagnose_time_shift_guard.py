@@ -46,17 +46,16 @@ def test_a_quantized_50_hz_null_log_stays_clean(monkeypatch):
     assert d["findings"] == [] and d["unexplained"] == []
 
 
-def test_the_rule_is_on_and_its_table_is_its_jsons():
-    """The seventy-sixth round was kept: the switch is on, the docs' table holds each probe JSON's row as
-    --against-off-rows prints it, no row gained a wrong name or lost `unexplained`, missed effects went up by at most 1 %
-    of the examined vocabulary rows, at most
-    1 % of the examined null logs gained an entry, at least half of the out-of-vocabulary logs that ended "none" gained
-    `unexplained`, and every row where the rule fired is now the kept row of its log (folded)."""
+def test_the_rule_is_off_and_its_table_is_its_jsons():
+    """The seventy-sixth round was not kept: the switch is off, the docs' table holds each probe JSON's row as
+    --against-off-rows prints it, no row gained a wrong name or lost `unexplained`, at least half of the
+    out-of-vocabulary logs that ended "none" would gain `unexplained`, but more than 1 % of the examined null logs
+    gained an entry (the rule's condition (2)); no kept row holds the rule's diagnosis of a log where it fired."""
     from conftest import bench_module, probe_results
-    assert U.TIME_SHIFT_NO_ADC_GUARD is True
+    assert U.TIME_SHIFT_NO_ADC_GUARD is False
     probe = bench_module("probe_time_shift_guard")
     doc, files, differences = probe_results("diagnose_time_shift_guard_round76_*.json")
-    assert [f.name[-12:] for f, _ in files] == [f"_lane_{x}.json" for x in "abcd"]
+    assert [f.name[-12:] for f, _ in files] == [f"_lane_{x}.json" for x in "abcdef"]
     assert probe.AGAINST_OFF_HEADER in doc
     examined = {"loop": set(), "testbench": set()}
     for f, d in files:
@@ -64,16 +63,19 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
         assert probe.against_off_row(f.name, s) in doc
         assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == []
         examined[d["family"]] |= set(d["keys_examined"])
-        assert differences(d) == [], f.name
-    s = probe.against_off([str(f) for f, _ in files])
     u = probe.unexplained_changes([str(f) for f, _ in files])
-    # missed effects up by at most 1 % of the examined vocabulary rows (18568 lost its Stribeck law)
-    assert s["missed_on"] - s["missed_off"] <= 0.01 * u["examined"]["vocab"]
     assert u["oov_lost"] == u["null_lost"] == []
-    assert len(u["null_gained"]) <= 0.01 * u["examined"]["null"]
     assert 2 * len(u["oov_gained"]) >= u["oov_none_off"]
-    # the fresh blocks 28900-29099 ran before the rule: lane c holds their rows with a quantized torque at 50 Hz
-    assert examined["loop"] >= set(k for k in probe.touchable_keys() if k >= 28900)
-    assert examined["testbench"] == set(probe.touchable_keys("testbench"))
+    assert sorted(u["null_gained"]) == [700, 20830, 21114]
+    assert len(u["null_gained"]) > 0.01 * u["examined"]["null"]
     line = " ".join(doc.split())
     assert f"{len(u['oov_gained'])} of the {u['oov_none_off']} examined out-of-vocabulary" in line
+    assert f"3 of the {u['examined']['null']} examined null logs gain an entry" in line
+    assert sum(len(x) for x in examined.values()) == 1951 and "1,951 of the 2,500 rows were examined" in line
+    assert examined["testbench"] == set(probe.touchable_keys("testbench"))
+    # not folded: where the rule fired, the kept row is not the rule's row (it changed the entries there)
+    kept = bench_module("bench_diagnose_testbench").kept_rows_naming("any")
+    for f, d in files:
+        for r in d["rows"]:
+            if r["unexplained"] != r["kept_row"]["unexplained"]:
+                assert kept[(r["family"], r["robot"], r["k"])][1]["unexplained"] != r["unexplained"], r["k"]
