@@ -167,12 +167,23 @@ def _planted(r) -> set:
     return {e for e in r["truth"].split(" (not visible")[0].split("+") if e and e != "none"}
 
 
+def row_kind(r) -> str | None:
+    """``oov`` (an out-of-vocabulary effect planted and visible), ``null`` (nothing planted), ``vocab`` (no visible
+    out-of-vocabulary effect, among them logs whose planted effects are all not visible), or None for a label with an
+    out-of-vocabulary effect beside a "(not visible ...)" part (counted in none of the three)."""
+    oov_all = set(OOV) | set(LOOP_OOV)
+    if set(r["truth"].split("+")) & oov_all:
+        return "oov"
+    if r["truth"] == "none":
+        return "null"
+    return None if _planted(r) & oov_all else "vocab"
+
+
 def _counts(rows) -> dict:
     conf = Counter((r["truth"], r["got"]) for r in rows)
-    oov_all = set(OOV) | set(LOOP_OOV)
-    oov = [r for r in rows if set(r["truth"].split("+")) & oov_all]
-    null = [r for r in rows if r["truth"] == "none"]
-    vocab = [r for r in rows if r["truth"] != "none" and not _planted(r) & oov_all]
+    oov = [r for r in rows if row_kind(r) == "oov"]
+    null = [r for r in rows if row_kind(r) == "null"]
+    vocab = [r for r in rows if row_kind(r) == "vocab"]
     return {"logs": len(rows), "correct": sum(r["correct"] for r in rows),
             "wrong_names": sum(bool(r["wrong"]) for r in rows), "missed": sum(bool(r["missed"]) for r in rows),
             "oov_logs": len(oov), "oov_unexplained_right": sum(r["oov_unexplained"] and not r["wrong"] for r in oov),

@@ -39,10 +39,10 @@ def run_rule_probe(out_path: str, keys, family: str, *, rule: str, func: str, re
     counted under ``classes_examined``.
     Writes ``out_path`` every ten logs (``examined`` says how far a stopped run got) and at the end."""
     import importlib
-    core = importlib.import_module(f"drake_est.diagnose.{module}")
+    mod = importlib.import_module(f"drake_est.diagnose.{module}")
     kept = kept_rows(family, keys)
     make = B.loop_cases if family == "loop" else B.cases
-    was_on, original = getattr(core, rule), getattr(core, func)
+    was_on, original = getattr(mod, rule), getattr(mod, func)
     hits = []
 
     def counted(*a, **kw):
@@ -58,13 +58,13 @@ def run_rule_probe(out_path: str, keys, family: str, *, rule: str, func: str, re
         res["classes_examined"] = {}
     if compare_off:
         res["rows_off"], res["refused_off"] = [], []
-    setattr(core, func, counted)
+    setattr(mod, func, counted)
     try:
         for m, k in enumerate(keys):
             spec = make(k + 1)[k]
             hits.clear()
             rows = []
-            setattr(core, rule, True)
+            setattr(mod, rule, True)
             B._run_family(family, [spec], rows, k, res["refused"])
             res["examined"] += 1
             res["keys_examined"].append(k)
@@ -77,13 +77,13 @@ def run_rule_probe(out_path: str, keys, family: str, *, rule: str, func: str, re
                     r["kept_json"], r["kept_row"] = kept[k][0], kept[k][1]
                     res["rows"].append(r)
                 if compare_off:
-                    setattr(core, rule, False)
+                    setattr(mod, rule, False)
                     B._run_family(family, [spec], res["rows_off"], k, res["refused_off"])
             if m % 10 == 9:
                 B._write_json(res, out_path)
     finally:
-        setattr(core, func, original)
-        setattr(core, rule, was_on)
+        setattr(mod, func, original)
+        setattr(mod, rule, was_on)
     B._write_json(res, out_path)
     return res
 

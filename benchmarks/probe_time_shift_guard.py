@@ -42,17 +42,12 @@ touchable_keys = functools.partial(speed_curve.touchable_keys, touchable=touchab
 keys_cli = functools.partial(speed_curve.keys_cli, touchable=touchable)
 
 
-OOV = ("backlash", "compliance", "sensor_delay", "delay")
-
-
-def kind_of(r: dict) -> str:
-    """The kind of a benchmark row: ``null`` (nothing planted), ``oov`` (a visible out-of-vocabulary effect) or
-    ``vocab`` (the rest, a log whose planted effects are all invisible among them)."""
-    return "null" if r["truth"] == "none" else "oov" if r["truth"] in OOV else "vocab"
+kind_of = speed_curve.B.row_kind
 
 
 def row_class(family: str, r: dict) -> str:
-    """The probe's class of a kept row (``classes_examined``): its :func:`kind_of`, whatever the family."""
+    """The probe's class of a kept row (``classes_examined``): its kind (``bench_diagnose_testbench.row_kind``: null,
+    oov or vocab), whatever the family."""
     return kind_of(r)
 
 
@@ -69,11 +64,11 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
     def record(got, a, kw):
         # the same call with the rule off: fired where the reported entries differ
-        U.TIME_SHIFT_NO_ADC_GUARD = False
+        was, U.TIME_SHIFT_NO_ADC_GUARD = U.TIME_SHIFT_NO_ADC_GUARD, False
         try:
             off = original(*a, **{k: v for k, v in kw.items() if k != "tests_out"})
         finally:
-            U.TIME_SHIFT_NO_ADC_GUARD = True
+            U.TIME_SHIFT_NO_ADC_GUARD = was
         on_e, off_e = _entries(got), _entries(off)
         if on_e == off_e:
             return None
