@@ -14,6 +14,10 @@ call is made again with the rule off and the two lists of entries compared).
     python benchmarks/probe_time_shift_guard.py --against-off A.json B.json     # judged against the rule-off rows
     python benchmarks/probe_time_shift_guard.py --against-off-rows A.json B.json
     python benchmarks/probe_time_shift_guard.py --unexplained A.json B.json     # who gained or lost an entry
+
+``--rule=TIME_SHIFT_GUARD_LIFTED_IN_RANGE`` (before the other arguments): the seventy-seventh round's rule instead,
+the guard lifted only where the test's delay estimate lies within the shifts it tried
+(``benchmarks/results/diagnose_time_shift_guard_round77_rule.txt``).
 """
 from __future__ import annotations
 
@@ -56,19 +60,27 @@ def _entries(found) -> list:
     return [(int(d["joint"]), d["variable"]) for d in found]
 
 
-def run(out_path: str, keys, family: str = "loop") -> dict:
-    """Diagnose the kept logs ``keys`` of ``family`` with the rule on; where it fired, store the rows and the rows of
-    the same logs with the rule off."""
+#: the switches of ``drake_est.diagnose.unexplained`` this probe can turn on (``--rule=NAME``): the seventy-sixth
+#: round's and the seventy-seventh's (the guard lifted where the delay estimate lies within the shifts tried)
+RULES = ("TIME_SHIFT_NO_ADC_GUARD", "TIME_SHIFT_GUARD_LIFTED_IN_RANGE")
+
+
+def run(out_path: str, keys, family: str = "loop", rule: str = RULES[0]) -> dict:
+    """Diagnose the kept logs ``keys`` of ``family`` with the rule ``rule`` (one of :data:`RULES`) on; where it fired,
+    store the rows and the rows of the same logs with the rule off."""
     from drake_est.diagnose import unexplained as U
+    if rule not in RULES:
+        raise SystemExit(f"--rule must be one of {', '.join(RULES)}, got {rule!r}")
     original = U.residual_structure
 
     def record(got, a, kw):
         # the same call with the rule off: fired where the reported entries differ
-        was, U.TIME_SHIFT_NO_ADC_GUARD = U.TIME_SHIFT_NO_ADC_GUARD, False
+        was = getattr(U, rule)
+        setattr(U, rule, False)
         try:
             off = original(*a, **{k: v for k, v in kw.items() if k != "tests_out"})
         finally:
-            U.TIME_SHIFT_NO_ADC_GUARD = was
+            setattr(U, rule, was)
         on_e, off_e = _entries(got), _entries(off)
         if on_e == off_e:
             return None
@@ -78,7 +90,7 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
                                 "torque_delay_s": float(d.get("torque_delay_s", float("nan")))}
                                for d in got if d["variable"] == "time_shift_torque_vs_position"]}
 
-    return run_rule_probe(out_path, keys, family, rule="TIME_SHIFT_NO_ADC_GUARD", func="residual_structure",
+    return run_rule_probe(out_path, keys, family, rule=rule, func="residual_structure",
                           record=record, hits_key="entries", row_class=row_class, compare_off=True,
                           module="unexplained")
 
@@ -116,7 +128,10 @@ def main(argv=None):
     if argv[:1] == ["--unexplained"]:
         print(json.dumps(unexplained_changes(argv[1:]), indent=1))
     elif not against_off_cli(argv):
-        probe_main(argv, __doc__, keys_cli, run)
+        rule = RULES[0]
+        if argv and argv[0].startswith("--rule="):
+            rule = argv.pop(0).split("=", 1)[1]
+        probe_main(argv, __doc__, keys_cli, functools.partial(run, rule=rule))
 
 
 if __name__ == "__main__":
