@@ -2312,6 +2312,17 @@ LINEAR_RESPONSE_TAPS = 30
 #: abrupt change, a drift) moves it, and a filter of the acceleration replays what it moved (sixty-first round: 17
 #: planted disturbances at 10-100 Hz set aside)
 LINEAR_RESPONSE_EFFECTS = ("position_dependent_load", "position_dependent_friction", "stribeck", "asymmetric_coulomb")
+#: (seventy-eighth round) the linear-response check also holds the laws of a joint whose final residual is correlated
+#: in time (a ``time_correlation`` entry), not only of one whose residual depends on the acceleration: a law of the
+#: position that took part of an elastic gear's response can take its dependence on the acceleration with it, and the
+#: rest of the response is still a filter of the motion (fresh compliance log, seed 2000160 of
+#: ``benchmarks/bench_time_shift_null_rate.py``: a position load named at 50 Hz, the final residual 85 % correlated in
+#: time and no ``acceleration`` entry; given the response the load gains -1.1 %, the response given the load 52.7 %;
+#: rule: ``benchmarks/results/diagnose_linear_response_time_correlation_round78_rule.txt``)
+LINEAR_RESPONSE_ON_TIME_CORRELATION = False
+#: the ``unexplained`` entries whose joints the linear-response check holds (``time_correlation`` too with
+#: :data:`LINEAR_RESPONSE_ON_TIME_CORRELATION`)
+LINEAR_RESPONSE_TRIGGERS = ("acceleration",)
 
 
 def linear_response_nuisance(prep, j, span=LINEAR_RESPONSE_SPAN_S, taps=LINEAR_RESPONSE_TAPS) -> np.ndarray:
@@ -2338,7 +2349,8 @@ def linear_response_nuisance(prep, j, span=LINEAR_RESPONSE_SPAN_S, taps=LINEAR_R
 def finding_explained_by_linear_response(prep, model, unexplained, alpha, min_gain):
     """A finding of the final ``model`` that a linear response to the acceleration explains, one way: on a joint whose
     final residual depends on the acceleration (an ``acceleration`` entry of
-    :func:`~drake_est.diagnose.unexplained.residual_structure`), a single-joint smooth law of the position or speed
+    :func:`~drake_est.diagnose.unexplained.residual_structure`; a ``time_correlation`` entry too with
+    :data:`LINEAR_RESPONSE_ON_TIME_CORRELATION`), a single-joint smooth law of the position or speed
     (:data:`LINEAR_RESPONSE_EFFECTS`) whose columns do not predict
     the held-out residual given the other findings and a free linear response to the acceleration
     (:func:`linear_response_nuisance`; partial held-out F-test at ``alpha``, gain ``min_gain``), while that response
@@ -2347,8 +2359,9 @@ def finding_explained_by_linear_response(prep, model, unexplained, alpha, min_ga
     motion a law of the position takes part of it (loop spec 18456: a 6.4 Hz resonance at 1000 Hz named a position
     load, which given the response gains 0.2 % while the response given it gains 28 %).  The latest such finding as
     ``(ext, why)``, else None."""
+    triggers = LINEAR_RESPONSE_TRIGGERS + (("time_correlation",) if LINEAR_RESPONSE_ON_TIME_CORRELATION else ())
     joints = {int(u["joint"]) for u in unexplained
-              if u.get("variable") == "acceleration" and u.get("joint") is not None}
+              if u.get("variable") in triggers and u.get("joint") is not None}
     laws = [x for x in model.exts if not x.shared and x.joint in joints and x.effect in LINEAR_RESPONSE_EFFECTS]
     got = _latest_explained_one_way(prep, model, laws, lambda j: linear_response_nuisance(prep, j), alpha, min_gain)
     if got is not None:

@@ -769,7 +769,8 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE, 
 
 def test_readings(tests, steps, short, var, n_tests) -> list:
     """What each test of :func:`residual_structure` read, reported or not: ``{"joint", "variable", "p_value",
-    "share", "structure_rms", "adc_step", "adc_guarded", "n_tests"}`` (the reversal test: p-value and share), for
+    "share", "structure_rms", "adc_step", "adc_guarded", "n_tests"}`` (the time-shift test also ``torque_delay_s`` and
+    ``largest_shift_s``; the reversal test: p-value and share), for
     measuring the tests' null tails (``benchmarks/bench_unexplained_shares.py``)."""
     out = []
     for j, name, r in tests:
@@ -779,10 +780,13 @@ def test_readings(tests, steps, short, var, n_tests) -> list:
             continue
         p, share = float(r[0]), float(r[1])
         v_e = r[3] if len(r) > 3 else var[j]
-        out.append({"joint": int(j), "variable": name, "p_value": p, "share": share,
-                    "structure_rms": float(np.sqrt(share * v_e)), "adc_step": float(steps[j]),
-                    "adc_guarded": _adc_guarded(name, share, v_e, steps[j], short[j], delay_in_range(name, r)),
-                    "n_tests": int(n_tests)})
+        d = {"joint": int(j), "variable": name, "p_value": p, "share": share,
+             "structure_rms": float(np.sqrt(share * v_e)), "adc_step": float(steps[j]),
+             "adc_guarded": _adc_guarded(name, share, v_e, steps[j], short[j], delay_in_range(name, r)),
+             "n_tests": int(n_tests)}
+        if name == "time_shift_torque_vs_position" and len(r) >= 8:
+            d["torque_delay_s"], d["largest_shift_s"] = float(r[6]), float(r[7])
+        out.append(d)
     return out
 
 
