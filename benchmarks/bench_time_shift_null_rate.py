@@ -14,7 +14,7 @@ elsewhere neither rule can change the diagnosis, which is deterministic.
 
 Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_time_shift_null_rate.py --kind null --n 200 [--lane 0/2]
            --json out.json
-       python benchmarks/bench_time_shift_null_rate.py --summary a.json b.json
+       python benchmarks/bench_time_shift_null_rate.py --summary a.json b.json     # or --table: the docs' table
 """
 from __future__ import annotations
 
@@ -117,7 +117,9 @@ def upper_95(k: int, n: int) -> float:
 
 def summary(rows) -> dict:
     """Per kind and setting (off and each rule): logs with any finding or entry (null) or named `unexplained` (out
-    of vocabulary, visible ones only), with the counts of the logs left out (refused; planted effect not visible)."""
+    of vocabulary, visible ones only; per rule also the logs that gain or lose `unexplained` or gain a name against
+    the rule off, and ``none_off``: those without `unexplained` with the rule off), with the counts of the logs left
+    out (refused; planted effect not visible)."""
     out = {}
     for kind in ("null", "oov"):
         rs = [r for r in rows if r["kind"] == kind]
@@ -137,8 +139,46 @@ def summary(rows) -> dict:
                 hit = [r["i"] for r in rs if r[setting]["unexplained"] and not r[setting]["findings"]]
                 named = [r["i"] for r in rs if r[setting]["findings"]]
                 d[setting] = {"unexplained": hit, "rate": len(hit) / max(len(rs), 1), "named_something": named}
+                if setting != "off":
+                    # against the same logs with the rule off: `unexplained` gained where it ended without, or lost
+                    d[setting]["gained"] = [r["i"] for r in rs if not r["off"]["unexplained"] and r[setting]["unexplained"]]
+                    d[setting]["lost"] = [r["i"] for r in rs if r["off"]["unexplained"] and not r[setting]["unexplained"]]
+                    d[setting]["name_gained"] = [r["i"] for r in rs
+                                                 if set(r[setting]["findings"]) - set(r["off"]["findings"])]
+        if kind == "oov":
+            d["none_off"] = [r["i"] for r in rs if not r["off"]["unexplained"]]
         out[kind] = d
     return out
+
+
+SETTING_NAMES = {"off": "guard as kept (off)", "TIME_SHIFT_NO_ADC_GUARD": "lifted wherever the test runs (76th)",
+                 "TIME_SHIFT_GUARD_LIFTED_IN_RANGE": "lifted where the delay is in range (77th, 79th)"}
+
+
+def table(s: dict) -> str:
+    """The docs' table of a :func:`summary`: per setting, the null logs with an entry or a finding (rate and its 95 %
+    upper bound) and the visible out-of-vocabulary logs `unexplained` and named."""
+    n, o = s.get("null"), s.get("oov")
+    lines = [f"| setting | null logs with an entry or finding (of {n['logs'] if n else 0}) | 95 % upper bound | "
+             f"out of vocabulary `unexplained` (of {o['logs'] if o else 0} visible) | out of vocabulary, a name |",
+             "|---|---|---|---|---|"]
+    for k in ("off",) + RULES:
+        a = f"{len(n[k]['with_entry_or_finding'])} ({100 * n[k]['rate']:.1f} %)" if n else "-"
+        b = f"{100 * n[k]['upper_95']:.2f} %" if n else "-"
+        c = f"{len(o[k]['unexplained'])} ({100 * o[k]['rate']:.1f} %)" if o else "-"
+        d = ", ".join(f"i = {i}" for i in o[k]["named_something"]) or "none" if o else "-"
+        lines.append(f"| {SETTING_NAMES[k]} | {a} | {b} | {c} | {d} |")
+    return "\n".join(lines)
+
+
+def _read(paths) -> list:
+    rows = []
+    for p in paths:
+        try:
+            rows += json.loads(Path(p).read_text())
+        except (OSError, ValueError) as e:
+            raise SystemExit(f"cannot read {p}: {e}")
+    return rows
 
 
 def main(argv=None):
@@ -149,15 +189,13 @@ def main(argv=None):
     ap.add_argument("--lane", default=None, metavar="I/N")
     ap.add_argument("--json", default=None)
     ap.add_argument("--summary", nargs="+", default=None, metavar="JSON")
+    ap.add_argument("--table", nargs="+", default=None, metavar="JSON", help="the docs' table of these runs")
     a = ap.parse_args(argv)
     if a.summary:
-        rows = []
-        for p in a.summary:
-            try:
-                rows += json.loads(Path(p).read_text())
-            except (OSError, ValueError) as e:
-                raise SystemExit(f"cannot read {p}: {e}")
-        print(json.dumps(summary(rows), indent=1))
+        print(json.dumps(summary(_read(a.summary)), indent=1))
+        return
+    if a.table:
+        print(table(summary(_read(a.table))))
         return
     if a.kind not in SEED_BASE:
         raise SystemExit(f"--kind must be null or oov, got {a.kind!r}")

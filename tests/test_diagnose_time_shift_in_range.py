@@ -59,3 +59,31 @@ def test_the_seventy_sixth_rounds_null_alarms_stay_clean(monkeypatch, k):
     monkeypatch.setattr(U, "TIME_SHIFT_NO_ADC_GUARD", True)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert [u["variable"] for u in d["unexplained"]] == [TS] and d["unexplained"][0]["torque_delay_s"] > 0.1, k
+
+
+def test_the_seventy_seventh_rounds_table_is_its_jsons_and_its_conditions_failed():
+    """Lanes g and h (its evidence) gained no wrong name, but 1 of 50 null logs an entry (none allowed) and 27 of 55
+    out-of-vocabulary logs that end "none" `unexplained` (half asked); lane i (the seventy-sixth round's fired rows)
+    keeps that round's three null alarms clean.  The docs' tables are the JSONs'."""
+    from conftest import bench_module, probe_results
+    probe = bench_module("probe_time_shift_guard")
+    doc, files, _ = probe_results("diagnose_time_shift_guard_round77_lane_*.json")
+    assert [f.name[-12:] for f, _ in files] == [f"_lane_{x}.json" for x in "ghij"]
+    for f, d in files:
+        s = probe.against_off([str(f)])
+        assert probe.against_off_row(f.name, s) in doc
+        assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == []
+        assert d["rule"] == "TIME_SHIFT_GUARD_LIFTED_IN_RANGE"
+    gh = probe.unexplained_changes([str(f) for f, _ in files[:2]])
+    assert gh["examined"] == {"vocab": 438, "null": 50, "oov": 61} and gh["null_gained"] == [22830]
+    assert len(gh["oov_gained"]) == 27 and gh["oov_none_off"] == 55 and 2 * 27 < 55
+    i = probe.unexplained_changes([str(files[2][0])])
+    assert i["null_gained"] == [] and (len(i["oov_gained"]), i["oov_none_off"]) == (97, 111)
+    line = " ".join(doc.split())
+    assert "**1 of the 50 null logs gains a time-shift entry** (22830" in line
+    assert "**27 of the 55 out-of-vocabulary logs that end \"none\" gain `unexplained`**" in line
+    nr = bench_module("bench_time_shift_null_rate")
+    from pathlib import Path
+    fresh = sorted(str(p) for p in (Path(__file__).resolve().parents[1] / "benchmarks" / "results").glob(
+        "time_shift_guard_fresh_*_0[03]00.json"))
+    assert nr.table(nr.summary(nr._read(fresh))) in doc
