@@ -1,0 +1,52 @@
+"""The seventy-eighth round: the linear-response check (an elastic gear's resonance) also holds the laws of a joint
+whose final residual is correlated in time (core.LINEAR_RESPONSE_ON_TIME_CORRELATION)."""
+import pytest
+
+from drake_est.diagnose import core, diagnose
+
+from conftest import bench_module
+
+
+@pytest.fixture(scope="module")
+def compliance_160():
+    """Fresh closed-loop log i = 160 of bench_time_shift_null_rate.py --kind oov: an elastic gear, 50 Hz, quantized."""
+    nr = bench_module("bench_time_shift_null_rate")
+    spec = nr.spec("oov", 160)
+    log, truth = nr.B.loop_log(spec)
+    assert spec["effects"] == {"compliance": 1.0} and truth["effects"] == ["compliance"]
+    return nr.B, spec, log
+
+
+def test_an_elastic_gear_named_a_position_load_is_set_aside_with_the_rule(monkeypatch, compliance_160):
+    B, spec, log = compliance_160
+    monkeypatch.setattr(core, "LINEAR_RESPONSE_ON_TIME_CORRELATION", False)
+    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    assert B.judge(spec, d)["wrong"] == ["position_dependent_load"]
+    # the final residual is correlated in time and shows no dependence on the acceleration: the check did not run
+    assert "time_correlation" in [u["variable"] for u in d["unexplained"]]
+    assert "acceleration" not in [u["variable"] for u in d["unexplained"]]
+    monkeypatch.setattr(core, "LINEAR_RESPONSE_ON_TIME_CORRELATION", True)
+    d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    assert B.judge(spec, d) == {"wrong": [], "missed": [], "oov_unexplained": True, "correct": True}
+    (s,) = d["set_aside"]
+    assert s["effect"] == "position_dependent_load" and s["explained_by_linear_response"]
+    assert s["finding_given_linear_response"]["p_value"] > 0.01
+    assert s["linear_response_given_finding"]["rmse_reduction"] > 0.3
+
+
+def test_the_trigger_set_follows_the_switch(monkeypatch):
+    # a joint with only a time_correlation entry is held by the check only with the switch on
+    seen = []
+    monkeypatch.setattr(core, "_latest_explained_one_way", lambda prep, model, laws, *a: seen.append(laws) or None)
+
+    class E:
+        shared, joint, effect = False, 1, "position_dependent_load"
+
+    class M:
+        exts = [E()]
+
+    for on in (False, True):
+        monkeypatch.setattr(core, "LINEAR_RESPONSE_ON_TIME_CORRELATION", on)
+        assert core.finding_explained_by_linear_response(None, M(), [{"joint": 1, "variable": "time_correlation"}],
+                                                         1e-4, 0.02) is None
+    assert [len(x) for x in seen] == [0, 1]
