@@ -50,3 +50,20 @@ def test_the_trigger_set_follows_the_switch(monkeypatch):
         assert core.finding_explained_by_linear_response(None, M(), [{"joint": 1, "variable": "time_correlation"}],
                                                          1e-4, 0.02) is None
     assert [len(x) for x in seen] == [0, 1]
+
+
+def test_the_rule_is_on_and_its_table_is_its_jsons():
+    """Kept: over the 446 kept rows it can touch it fired in none; the docs' table is the JSONs'."""
+    from conftest import probe_results
+    assert core.LINEAR_RESPONSE_ON_TIME_CORRELATION is True
+    probe = bench_module("probe_linear_response_time_correlation")
+    doc, files, differences = probe_results("diagnose_linear_response_time_correlation_round78_lane_*.json")
+    assert [f.name[-12:] for f, _ in files] == ["_lane_a.json", "_lane_b.json"]
+    examined = set()
+    for f, d in files:
+        s = probe.against_off([str(f)])
+        assert probe.against_off_row(f.name, s) in doc
+        assert d["touched"] == [] and d["rows"] == [] and d["refused"] == []
+        examined |= set(d["keys_examined"])
+    assert examined == set(probe.touchable_keys("loop")) and len(examined) == 446
+    assert "**fired in none of the 446 kept rows**" in " ".join(doc.split())
