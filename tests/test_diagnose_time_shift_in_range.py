@@ -87,3 +87,27 @@ def test_the_seventy_seventh_rounds_table_is_its_jsons_and_its_conditions_failed
     fresh = sorted(str(p) for p in (Path(__file__).resolve().parents[1] / "benchmarks" / "results").glob(
         "time_shift_guard_fresh_*_0[03]00.json"))
     assert nr.table(nr.summary(nr._read(fresh))) in doc
+
+
+def test_the_seventy_ninth_round_failed_its_null_bound_and_the_rule_is_off():
+    """On 2,000 fresh null logs the in-range rule gains 23 entries, upper 95 % bound above 1 % (condition (1): at most
+    12); half of the out-of-vocabulary logs that end "none" gain `unexplained`, none loses it or gains a name; the
+    docs' table is the JSONs'."""
+    from pathlib import Path
+
+    from conftest import bench_module
+    assert U.TIME_SHIFT_GUARD_LIFTED_IN_RANGE is False and U.TIME_SHIFT_NO_ADC_GUARD is False
+    nr = bench_module("bench_time_shift_null_rate")
+    root = Path(__file__).resolve().parents[1]
+    files = sorted(str(p) for p in (root / "benchmarks" / "results").glob("time_shift_guard_round79_*.json"))
+    assert len(files) == 4
+    s = nr.summary(nr._read(files))
+    rule = "TIME_SHIFT_GUARD_LIFTED_IN_RANGE"
+    assert s["null"]["logs"] == 2000 and s["null"]["refused"] == []
+    assert len(s["null"][rule]["with_entry_or_finding"]) == 23 and s["null"][rule]["upper_95"] > 0.01
+    assert s["null"]["off"]["with_entry_or_finding"] == []
+    o = s["oov"]
+    assert 2 * len(o[rule]["gained"]) >= len(o["none_off"]) and o[rule]["lost"] == o[rule]["name_gained"] == []
+    doc = (root / "docs" / "readme" / "diagnose_testbench.md").read_text()
+    assert nr.table(s) in doc
+    assert "**23 of the 2,000 null logs gain a time-shift entry** (1.15 %, upper bound 1.63 %)" in " ".join(doc.split())
