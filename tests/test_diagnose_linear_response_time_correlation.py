@@ -65,5 +65,6 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
         assert probe.against_off_row(f.name, s) in doc
         assert d["touched"] == [] and d["rows"] == [] and d["refused"] == []
         examined |= set(d["keys_examined"])
-    assert examined == set(probe.touchable_keys("loop")) and len(examined) == 446
+    # the selection: every touchable kept row that ran before the rule (fresh blocks from 29100 on ran with it)
+    assert examined == {k for k in probe.touchable_keys("loop") if k < 29100} and len(examined) == 446
     assert "**fired in none of the 446 kept rows**" in " ".join(doc.split())
