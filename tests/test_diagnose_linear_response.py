@@ -54,7 +54,8 @@ def test_the_response_columns_are_delayed_accelerations(compliance):
     assert core.linear_response_nuisance(prep, 1, span=0.003).shape[1] == 4
 
 
-def test_the_check_needs_an_acceleration_entry(compliance):
+def test_the_check_needs_an_acceleration_entry(compliance, monkeypatch):
+    # or, since the seventy-eighth round (core.LINEAR_RESPONSE_ON_TIME_CORRELATION), a time_correlation entry
     rep, _ = compliance
     prep = rep.result.prep
     cands = core._candidates(prep, Model(prep), Model(prep).fit(), set())
@@ -63,8 +64,14 @@ def test_the_check_needs_an_acceleration_entry(compliance):
     un = rep.to_dict()["unexplained"]
     got = core.finding_explained_by_linear_response(prep, model, un, ALPHA, MIN_GAIN)
     assert got is not None and got[0] is load
+    no_acc = [u for u in un if u["variable"] != "acceleration"]
+    assert "time_correlation" in [u["variable"] for u in no_acc]
+    got = core.finding_explained_by_linear_response(prep, model, no_acc, ALPHA, MIN_GAIN)
+    assert got is not None and got[0] is load
     assert core.finding_explained_by_linear_response(
-        prep, model, [u for u in un if u["variable"] != "acceleration"], ALPHA, MIN_GAIN) is None
+        prep, model, [u for u in no_acc if u["variable"] != "time_correlation"], ALPHA, MIN_GAIN) is None
+    monkeypatch.setattr(core, "LINEAR_RESPONSE_ON_TIME_CORRELATION", False)
+    assert core.finding_explained_by_linear_response(prep, model, no_acc, ALPHA, MIN_GAIN) is None
 
 
 def test_a_planted_disturbance_is_not_held_against_the_response():
