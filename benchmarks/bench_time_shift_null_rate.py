@@ -36,14 +36,23 @@ SEED_BASE = {"null": 1_000_000, "oov": 2_000_000}
 RULES = ("TIME_SHIFT_NO_ADC_GUARD", "TIME_SHIFT_GUARD_LIFTED_IN_RANGE")
 
 
-def spec(kind: str, i: int) -> dict:
-    """The i-th generated spec of ``kind`` (null or oov): 50 Hz, quantized torque, as the benchmark draws the rest."""
+#: the torque noises of the generator (``--noise``)
+NOISES = ("quantized", "gaussian", "student_t")
+
+
+def spec(kind: str, i: int, rate: float = 50.0, noise: str = "quantized") -> dict:
+    """The i-th generated spec of ``kind`` (null or oov): 50 Hz, quantized torque unless ``rate`` and ``noise`` say
+    otherwise, as the benchmark draws the rest."""
     if kind not in SEED_BASE:
         raise SystemExit(f"--kind must be null or oov, got {kind!r}")
+    if noise not in NOISES:
+        raise SystemExit(f"--noise must be one of {', '.join(NOISES)}, got {noise!r}")
+    if not rate > 0:
+        raise SystemExit(f"--rate must be a positive sample rate in Hz, got {rate!r}")
     rng = np.random.default_rng(SEED_BASE[kind] + 500_000 + i)
     effects = {} if kind == "null" else {B.LOOP_OOV[i % len(B.LOOP_OOV)]: 1.0}
-    return {"effects": effects, "seed": SEED_BASE[kind] + i, "sample_rate": 50.0,
-            "duration": float(rng.choice([120.0, 120.0, 300.0])), "noise": "quantized",
+    return {"effects": effects, "seed": SEED_BASE[kind] + i, "sample_rate": float(rate),
+            "duration": float(rng.choice([120.0, 120.0, 300.0])), "noise": noise,
             "noise_std": float(rng.uniform(0.03, 0.15))}
 
 
@@ -69,7 +78,8 @@ def _verdict(rep) -> dict:
     return {"findings": list(rep.effects), "unexplained": [u["variable"] for u in rep.result.unexplained]}
 
 
-def run(kind: str, start: int, n: int, lane: str | None, path: str | None) -> list:
+def run(kind: str, start: int, n: int, lane: str | None, path: str | None, rate: float = 50.0,
+        noise: str = "quantized") -> list:
     """Diagnose the generated logs start .. start+n-1 of ``kind`` (this lane's share); rows written to ``path``
     every ten logs and at the end."""
     from drake_est.diagnose import diagnose, unexplained as U
@@ -78,9 +88,10 @@ def run(kind: str, start: int, n: int, lane: str | None, path: str | None) -> li
     i0, m = B._lane(lane)
     rows = []
     for i in progress(range(start + i0, start + n, m), desc=f"time shift, {kind}"):
-        s = spec(kind, i)
+        s = spec(kind, i, rate, noise)
         log, truth = B.loop_log(s)
-        row = {"i": i, "kind": kind, "effect": next(iter(s["effects"]), None), "seed": s["seed"],
+        row = {"i": i, "kind": kind, "effect": next(iter(s["effects"]), None), "seed": s["seed"], "rate": rate,
+               "noise": noise,
                "duration": s["duration"], "noise_std": s["noise_std"], "visible": list(truth["effects"])}
         try:
             rep = diagnose(log, robot="generic", seed=0, simulate=False)
@@ -184,6 +195,8 @@ def _read(paths) -> list:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--kind", default="null")
+    ap.add_argument("--rate", type=float, default=50.0, help="sample rate [Hz] of the generated logs (50)")
+    ap.add_argument("--noise", default="quantized", help="torque noise: quantized (default), gaussian, student_t")
     ap.add_argument("--start", type=int, default=0)
     ap.add_argument("--n", type=int, default=100)
     ap.add_argument("--lane", default=None, metavar="I/N")
@@ -199,7 +212,8 @@ def main(argv=None):
         return
     if a.kind not in SEED_BASE:
         raise SystemExit(f"--kind must be null or oov, got {a.kind!r}")
-    rows = run(a.kind, a.start, a.n, a.lane, a.json)
+    spec(a.kind, 0, a.rate, a.noise)            # a bad option: one line, before any log is generated
+    rows = run(a.kind, a.start, a.n, a.lane, a.json, a.rate, a.noise)
     print(json.dumps(summary(rows), indent=1))
 
 

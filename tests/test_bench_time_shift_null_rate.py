@@ -77,3 +77,14 @@ def test_cli_errors_are_one_line(mod, tmp_path):
         mod.main(["--kind", "vocab", "--n", "1"])
     with pytest.raises(SystemExit, match="cannot read"):
         mod.main(["--summary", str(tmp_path / "missing.json")])
+
+
+def test_other_rates_and_noises_are_options_with_one_line_errors(mod):
+    s = mod.spec("oov", 4, 100.0, "gaussian")
+    assert (s["sample_rate"], s["noise"]) == (100.0, "gaussian")
+    assert {k: v for k, v in s.items() if k not in ("sample_rate", "noise")} == \
+        {k: v for k, v in mod.spec("oov", 4).items() if k not in ("sample_rate", "noise")}
+    with pytest.raises(SystemExit, match="--noise must be one of"):
+        mod.main(["--kind", "oov", "--noise", "pink", "--n", "1"])
+    with pytest.raises(SystemExit, match="--rate must be a positive"):
+        mod.main(["--kind", "oov", "--rate", "0", "--n", "1"])
