@@ -68,3 +68,20 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
     # the selection: every touchable kept row that ran before the rule (fresh blocks from 29100 on ran with it)
     assert examined == {k for k in probe.touchable_keys("loop") if k < 29100} and len(examined) == 446
     assert "**fired in none of the 446 kept rows**" in " ".join(doc.split())
+
+
+def test_fresh_logs_at_other_rates_name_no_cause():
+    """The docs' counts of the 240 fresh out-of-vocabulary logs at 10, 100 and 250 Hz are their JSONs'."""
+    import json
+    from pathlib import Path
+    res = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+    got = {}
+    for tag in ("10_q", "100_g", "100_q", "250_t"):
+        rows = json.loads((res / f"time_shift_guard_fresh_oov_rate_{tag}.json").read_text())
+        assert len(rows) == 60 and not [r for r in rows if "refused" in r or r["off"]["findings"]]
+        vis = [r for r in rows if r["visible"]]
+        got[tag] = (sum(bool(r["off"]["unexplained"]) for r in vis), len(vis))
+    assert got == {"10_q": (0, 46), "100_g": (45, 49), "100_q": (46, 51), "250_t": (46, 49)}
+    doc = " ".join((res.parents[1] / "docs" / "readme" / "diagnose_testbench.md").read_text().split())
+    assert "**None of the 240 is named a cause.**" in doc and "0 of 46 at 10 Hz" in doc
+    assert "45 of 49, 46 of 51 and 46 of 49" in doc
