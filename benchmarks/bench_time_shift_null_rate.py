@@ -64,13 +64,11 @@ def time_shift_reading(readings) -> dict | None:
 def could_fire(r, rule: str) -> bool:
     """Whether lifting the guard under ``rule`` could add the time-shift entry: significant, above its share bound,
     held back by the guard (and, for the in-range rule, a delay estimate within the shifts tried)."""
-    from drake_est.diagnose.unexplained import ALPHA_UNEXPLAINED, share_needed
-    if r is None or not r["adc_guarded"]:
-        return False
-    if not (r["p_value"] < ALPHA_UNEXPLAINED / r["n_tests"] and r["share"] >= share_needed(TS)):
+    from drake_est.diagnose.unexplained import delay_within, reportable
+    if r is None or not r["adc_guarded"] or not reportable(r["p_value"], r["share"], TS, r["n_tests"]):
         return False
     if rule == "TIME_SHIFT_GUARD_LIFTED_IN_RANGE":
-        return abs(r["torque_delay_s"]) <= r["largest_shift_s"] * (1 + 1e-9)
+        return delay_within(r["torque_delay_s"], r["largest_shift_s"])
     return True
 
 

@@ -28,6 +28,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
+import bench_time_shift_null_rate  # noqa: E402
 import probe_position_laws_speed_curve as speed_curve  # noqa: E402
 from probe_held_back_rival import (AGAINST_OFF_HEADER, against_off, against_off_cli,  # noqa: E402,F401
                                    against_off_row)
@@ -61,8 +62,9 @@ def _entries(found) -> list:
 
 
 #: the switches of ``drake_est.diagnose.unexplained`` this probe can turn on (``--rule=NAME``): the seventy-sixth
-#: round's and the seventy-seventh's (the guard lifted where the delay estimate lies within the shifts tried)
-RULES = ("TIME_SHIFT_NO_ADC_GUARD", "TIME_SHIFT_GUARD_LIFTED_IN_RANGE")
+#: round's and the seventy-seventh's (the guard lifted where the delay estimate lies within the shifts tried), the
+#: rules the fresh-log benchmark compares too
+RULES = bench_time_shift_null_rate.RULES
 
 
 def run(out_path: str, keys, family: str = "loop", rule: str = RULES[0]) -> dict:

@@ -729,7 +729,7 @@ def residual_structure(prep, fit, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE, 
         v_e = r[3] if len(r) > 3 else var[j]
         if _adc_guarded(name, share, v_e, steps[j], short[j], delay_in_range(name, r)):
             continue
-        if p < alpha / n_tests and share >= share_needed(name, min_share):
+        if reportable(p, share, name, n_tests, alpha, min_share):
             d = {"joint": int(j), "variable": name, "p_value": p, "share_of_residual_variance": float(share),
                  "samples": "accelerating samples left out by (9.9)" if name.endswith("_excluded_samples")
                  else "held-out samples",
@@ -803,12 +803,23 @@ def share_needed(name, min_share=MIN_SHARE) -> float:
     return min_share
 
 
+def reportable(p, share, name, n_tests, alpha=ALPHA_UNEXPLAINED, min_share=MIN_SHARE) -> bool:
+    """Whether a test's reading passes the level of :func:`residual_structure` (Bonferroni over ``n_tests``) and holds
+    the share of the residual variance the test needs (:func:`share_needed`); the ADC guard is not applied here."""
+    return bool(p < alpha / n_tests and share >= share_needed(name, min_share))
+
+
+def delay_within(delay_s, largest_shift_s) -> bool:
+    """Whether a signed delay estimate lies within the shifts the time-shift test tried (|c k h| <= K h, to rounding)."""
+    return bool(abs(delay_s) <= largest_shift_s * (1 + 1e-9))
+
+
 def delay_in_range(name, r) -> bool:
     """Whether a time-shift reading ``r`` (:func:`_time_shift`) reads a signed delay within the shifts it tried
-    (|c k h| <= K h); False for every other test."""
+    (:func:`delay_within`); False for every other test."""
     if name != "time_shift_torque_vs_position" or len(r) < 8:
         return False
-    return bool(abs(r[6]) <= r[7] * (1 + 1e-9))
+    return delay_within(r[6], r[7])
 
 
 def _adc_guarded(name, share, v_e, step, short, in_range=False) -> bool:
