@@ -24,7 +24,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import probe_position_laws_speed_curve as speed_curve  # noqa: E402
-from probe_held_back_rival import against_off_cli  # noqa: E402
+from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_runner import probe_main, run_rule_probe  # noqa: E402
 
 RULE = "ACCELERATION_SMOOTH_REQUIRED"

@@ -86,7 +86,9 @@ TIME_SHIFT_GUARD_LIFTED_IN_RANGE = False
 #: bin means alternate in sign from one bin to the next (a comb, not a law), as where the controller's response to the
 #: position encoder's rounding and the acceleration estimated from the rounded positions share the encoder's phase;
 #: the smooth function holds at most 3 % there.  A physical dependence on the acceleration (an inertia error, a
-#: resonance, a delay) is smooth in it.
+#: resonance, a delay) is smooth in it.  Not kept (its rule file's condition 2): 6 of the 243 kept out-of-vocabulary
+#: rows with such an entry, and 6 of 247 fresh ones, lose `unexplained`, their only entry being the same comb
+#: (docs/readme/diagnose_testbench.md, eightieth round)
 ACCELERATION_SMOOTH_REQUIRED = False
 #: the knots (rank quantiles) of the smooth function of :func:`smooth_rank_dependence`
 SMOOTH_RANK_KNOTS = (0.2, 0.4, 0.6, 0.8)
