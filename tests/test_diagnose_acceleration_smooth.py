@@ -106,3 +106,22 @@ def test_not_kept_and_its_tables_are_its_jsons():
         hit = [r for r in rows if "off" in r and (r["off"]["findings"] or r["off"]["unexplained"])]
         assert len(hit) == rate and not any(r["off"]["findings"] for r in hit), n
         assert f"(`{n}`)" in doc
+
+
+def test_the_fresh_elastic_gear_94_is_the_only_named_out_of_vocabulary_log_at_50_hz():
+    """The docs' counts of the further fresh out-of-vocabulary logs at 50 Hz (rule columns not used)."""
+    import json
+    from pathlib import Path
+    from conftest import bench_module
+    T = bench_module("bench_time_shift_null_rate")
+    res = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+
+    def oov(pattern):
+        rows = [r for f in sorted(res.glob(pattern)) for r in json.loads(f.read_text())]
+        return T.summary(rows)["oov"]
+    g = oov("time_shift_guard_fresh_oov_rate_50_g_0300_lane*.json")
+    t = oov("time_shift_guard_fresh_oov_rate_50_t_lane*.json")
+    assert (g["logs"], len(g["off"]["unexplained"]), g["off"]["named_something"]) == (502, 325, [])
+    assert (t["logs"], len(t["off"]["unexplained"]), t["off"]["named_something"]) == (246, 164, [94])
+    q = {r["i"]: r for r in json.loads((res / "time_shift_guard_fresh_oov_0000.json").read_text())}[94]
+    assert q["off"]["findings"] == [] and q["off"]["unexplained"]
