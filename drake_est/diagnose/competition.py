@@ -689,6 +689,67 @@ def holds_across_halves(prep, model, ext, alpha: float, min_gain: float, own_gai
     return {"significant": bool(ok), "half_gains": gains}
 
 
+#: (eighty-first round) a held-out row of the other half is compared by :func:`position_law_across_halves` only where
+#: a training row of the fitted half lies within this share of that half's position range (a law of the position
+#: predicts where it was seen, not beyond)
+VISITED_SHARE = 0.01
+#: ... and a direction of that comparison is judged only with at least this many such rows (and more than five per
+#: column of the law); with fewer the log cannot tell and the law stands
+VISITED_MIN_ROWS = 50
+
+
+def visited_rows(q, fit_rows, compare_rows, share: float = VISITED_SHARE) -> np.ndarray:
+    """``compare_rows`` (boolean over ``q``) where a position of ``fit_rows`` lies within ``share`` of the fitted
+    rows' position range."""
+    qf = np.sort(np.asarray(q, float)[fit_rows])
+    out = np.asarray(compare_rows, bool).copy()
+    if qf.size == 0:
+        out[:] = False
+        return out
+    if qf.size == 1:
+        return out & (np.abs(q - qf[0]) <= 0.0)
+    i = np.clip(np.searchsorted(qf, q), 1, qf.size - 1)
+    d = np.minimum(np.abs(q - qf[i - 1]), np.abs(q - qf[i]))
+    return out & (d <= share * float(qf[-1] - qf[0]))
+
+
+def position_law_across_halves(prep, model, ext, alpha: float, min_gain: float, solve=None) -> dict:
+    """Whether a single-joint law of the position ``ext`` predicts one half of the log from the other, where both
+    halves visit the same positions: its columns (with the model's) fitted on the training rows of one half (split at
+    the median time of the joint's used rows), judged on the held-out rows of the other half within
+    :data:`VISITED_SHARE` of a fitted position (:func:`visited_rows`), both ways (partial held-out F-test at
+    ``alpha``, gain >= ``min_gain``).  A friction level or load that changes with q is there whenever the axis passes
+    q; a misfit that follows the moves (an elastic gear ringing after the same few point-to-point moves, fresh
+    out-of-vocabulary spec 94 of ``benchmarks/bench_time_shift_null_rate.py``) is a law of the position only in the
+    blocks around those moves.  Returns ``held`` (False only when both directions were judged and neither
+    predicts), the gains and the rows compared."""
+    j = ext.joint
+    jd = prep.joints[j]
+    t = jd.t[jd.rows]
+    q = jd.q[jd.rows]
+    C = ext.cols[j]
+    none = np.zeros((C.shape[0], 0))
+    n_cols = model.design_with_shared(j).shape[1] + C.shape[1]
+    mid = float(np.median(t))
+    gains, p_values, rows, predicts = [], [], [], []
+    for first in (t < mid, t >= mid):
+        tr = jd.train & first
+        va = visited_rows(q, tr, jd.val & ~first)
+        n = int(va.sum())
+        rows.append(n)
+        if tr.sum() <= n_cols or n < max(VISITED_MIN_ROWS, 5 * C.shape[1]):
+            gains.append(None)
+            p_values.append(None)
+            continue
+        h = _partial_test(prep, model, j, none, C, alpha, min_gain, solve, rows=(tr, va))
+        gains.append(float(h["rmse_reduction"]))
+        p_values.append(float(h["p_value"]))
+        predicts.append(bool(h["p_value"] < alpha and h["rmse_reduction"] >= min_gain))
+    both_judged = len(predicts) == 2
+    return {"held": bool(any(predicts) or not both_judged), "half_gains": gains, "half_p_values": p_values,
+            "rows_compared": rows, "both_judged": both_judged}
+
+
 def law_confounded_with_time(prep, model, ext, periodic, periodic_test, alpha: float, min_gain: float, solve=None):
     """A law ``ext`` of the joint where a time-periodic candidate at a line of the motion (``periodic``) was set aside
     because a free function of the state explains it as well (``periodic_test``, :func:`survives_state_law`): when
