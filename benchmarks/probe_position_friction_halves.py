@@ -7,13 +7,13 @@ longer than a validation block, so a law of the position fitted on a transient's
 held-out blocks.  The rule (``core.POSITION_FRICTION_ACROSS_HALVES``; rule file:
 ``benchmarks/results/diagnose_position_friction_halves_round81_rule.txt``) is the last final-model check, so it can
 only act on the model that is final with the rule off: ``--keys touchable`` lists the kept rows with a position
-friction in ``got`` and a non-empty ``unexplained`` list.  ``--synth K``: the kept synth row K (generic robot), on
-and off.
+friction in ``got`` and a non-empty ``unexplained`` list.  ``--synth K OUT.json``: the kept synth row K (generic
+robot), on and off.
 
     python benchmarks/probe_position_friction_halves.py --keys touchable [--family=testbench] > kt.txt
     OPENBLAS_NUM_THREADS=1 python benchmarks/probe_position_friction_halves.py OUT.json $(cat kt.txt)
     python benchmarks/probe_position_friction_halves.py --against-off-rows A.json B.json
-    python benchmarks/probe_position_friction_halves.py --synth 1
+    python benchmarks/probe_position_friction_halves.py --synth 1 OUT.json
 """
 from __future__ import annotations
 
@@ -88,9 +88,10 @@ def synth_row(k: int) -> dict:
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["--synth"]:
-        if len(argv) != 2 or not argv[1].isdigit():
-            raise SystemExit("usage: --synth K")
-        print(json.dumps(synth_row(int(argv[1])), default=str))
+        if len(argv) != 3 or not argv[1].isdigit():
+            raise SystemExit("usage: --synth K OUT.json")
+        with open(argv[2], "w") as f:
+            json.dump(synth_row(int(argv[1])), f, indent=1, default=str)
         return
     if not against_off_cli(argv):
         probe_main(argv, __doc__, keys_cli, run)

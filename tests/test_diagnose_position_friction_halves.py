@@ -68,3 +68,32 @@ def test_a_planted_position_friction_holds_across_the_halves():
                                         solve=core._model_solver(m0, e.joint))
     assert h["held"] and h["both_judged"]
     assert min(h["half_gains"]) > 0.5
+
+
+def test_not_kept_and_its_table_is_its_jsons():
+    """Not kept (condition 3): the switch is off; the docs' probe table is the JSONs', every kept row the rule can
+    change was examined (the fresh blocks from 29300 on ran later), and the rule lost planted position frictions."""
+    import json
+    from pathlib import Path
+    from conftest import bench_module, probe_results
+    assert core.POSITION_FRICTION_ACROSS_HALVES is False
+    probe = bench_module("probe_position_friction_halves")
+    doc, files, _ = probe_results("diagnose_position_friction_halves_round81_lane_*.json")
+    assert [f.name[-12:] for f, _ in files] == ["_lane_a.json", "_lane_b.json", "_lane_c.json"]
+    examined = {"loop": set(), "testbench": set()}
+    for f, d in files:
+        assert probe.against_off_row(f.name, probe.against_off([str(f)])) in doc
+        examined[d["family"]] |= set(d["keys_examined"])
+    assert examined["loop"] == {k for k in probe.touchable_keys("loop") if k < 29300} and len(examined["loop"]) == 489
+    assert examined["testbench"] == set(probe.touchable_keys("testbench"))
+    s = probe.against_off([str(f) for f, _ in files])
+    assert s["classes_examined"] == {"vocab": 490} and s["fired"] == 16
+    assert s["wrong_gained"] == [22757]                      # condition 1 fails: a load named for a position friction
+    assert s["oov_unexplained_lost"] == [] and s["null_findings_gained"] == []
+    assert (s["missed_off"], s["missed_on"]) == (2, 15)      # condition 3 fails
+    lost_friction = [c["k"] for c in s["changed"] if "position_dependent_friction" in c["truth"]
+                     and "position_dependent_friction" not in c["on"]]
+    assert len(lost_friction) == 9
+    res = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+    synth = json.loads((res / "diagnose_position_friction_halves_round81_synth_1.json").read_text())
+    assert synth["on"]["got"] == synth["off"]["got"] == synth["kept"]["got"] == "position_dependent_friction"
