@@ -55,3 +55,15 @@ def test_results_row_speed_numbers_are_the_kept_json():
     for key in ("generic_total_cpu_s", "generic_max_cpu_s", "generic_pool_wall_s", "loop_total_cpu_s",
                 "loop_max_cpu_s", "loop_pool_wall_s") + (("loop_max_wall_threads_s",) if "threads" in out else ()):
         assert f"{out[key]:.1f} s" in row, key
+
+
+def test_the_speed_prose_quotes_the_kept_json():
+    """The speed section's "Met on ..." paragraph and the roadmap's speed line quote the kept JSON's figures."""
+    out = json.loads((ROOT / "benchmarks/results/diagnose_speed.json").read_text())
+    slow, one, pool = (f"{out[k]:.1f} s" for k in ("loop_max_wall_threads_s", "loop_max_cpu_s", "loop_pool_wall_s"))
+    text = " ".join((ROOT / "docs/readme/diagnose.md").read_text().split())
+    assert (f"takes {slow} on two threads and {one} CPU on one; the ten closed-loop logs take {pool} on two worker "
+            f"processes, the ten open-loop testbench logs {out['generic_pool_wall_s']:.1f} s") in text
+    road = " ".join((ROOT / "docs/readme/_roadmap.md").read_text().split())
+    assert (f"log {slow} on two threads, {one} on one; the ten on two worker processes {pool})") in road
+    assert out["cpu_model"] in road
