@@ -62,9 +62,9 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
                           row_class=row_class, compare_off=True)
 
 
-def synth_row(k: int) -> dict:
-    """The kept synth row ``k`` (generic robot) diagnosed with the rule on and off: ``{"on": row, "off": row,
-    "kept": row}``."""
+def synth_row(k: int, rule: str = RULE) -> dict:
+    """The kept synth row ``k`` (generic robot) diagnosed with the switch ``core.<rule>`` on and off: ``{"on": row,
+    "off": row, "kept": row}``."""
     from drake_est.diagnose import core
     B = speed_curve.B
     kept = {kk: r for (f, robot, kk), (_, r) in B.kept_rows_naming("any").items()
@@ -72,16 +72,16 @@ def synth_row(k: int) -> dict:
     if k not in kept:
         raise SystemExit(f"no kept synth row for k = {k}")
     spec = B.synth_cases(k + 1)[k]
-    was = getattr(core, RULE)
+    was = getattr(core, rule)
     out = {"kept": kept[k]}
     try:
         for name, on in (("on", True), ("off", False)):
-            setattr(core, RULE, on)
+            setattr(core, rule, on)
             rows = []
             B._run_family("synth", [spec], rows, k)
             out[name] = [r for r in rows if r.get("robot") == "generic"][0]
     finally:
-        setattr(core, RULE, was)
+        setattr(core, rule, was)
     return out
 
 

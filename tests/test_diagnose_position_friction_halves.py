@@ -26,7 +26,7 @@ def test_the_rule_is_off_and_the_check_returns_nothing_then():
     assert core.POSITION_FRICTION_ACROSS_HALVES is False
     assert core.position_friction_not_held_across_halves(None, None, [], core.ALPHA, core.MIN_GAIN) is None
     names = [n for n, _ in core._final_checks(None, [None] * 8, None, None, [], core.ALPHA, core.MIN_GAIN)]
-    assert names[-1] == "position_friction_halves"
+    assert names[-2:] == ["position_friction_halves", "position_friction_paired"]
 
 
 def _diagnose(spec_log, on):
