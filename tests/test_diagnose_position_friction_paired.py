@@ -47,3 +47,31 @@ def test_fresh_oov_94_is_set_aside_with_the_rule_on(noise, monkeypatch):
     assert on.effects == [] and on.result.unexplained
     aside = [r for r in on.result.prep.meta["set_aside"] if r.get("weak_on_blocks")]
     assert [(r["effect"], r["joint"]) for r in aside] == [("position_dependent_friction", 1)]
+
+
+def test_not_kept_and_its_table_is_its_jsons():
+    """Not kept (condition 3): the switch is off; the docs' probe table is the JSONs', every kept row the rule can
+    change (blocks up to 29699) was examined, and the missed effects rise."""
+    import json
+    from pathlib import Path
+    from conftest import bench_module, probe_results
+    assert core.POSITION_FRICTION_STRICT_PAIRED is False
+    probe = bench_module("probe_position_friction_paired")
+    doc, files, _ = probe_results("diagnose_position_friction_paired_round82_lane_*.json")
+    assert [f.name[-12:] for f, _ in files] == ["_lane_a.json", "_lane_b.json", "_lane_c.json"]
+    examined = {"loop": set(), "testbench": set()}
+    for f, d in files:
+        assert probe.against_off_row(f.name, probe.against_off([str(f)])) in doc
+        examined[d["family"]] |= set(d["keys_examined"])
+    assert examined["loop"] == {k for k in probe.touchable_keys("loop") if k < 29700} and len(examined["loop"]) == 499
+    assert examined["testbench"] == set(probe.touchable_keys("testbench"))
+    s = probe.against_off([str(f) for f, _ in files])
+    assert s["fired"] == 6 and s["wrong_gained"] == [] and s["oov_unexplained_lost"] == []
+    assert s["null_findings_gained"] == [] and (s["missed_off"], s["missed_on"]) == (3, 8)
+    fired = sorted(t["k"] for _, d in files for t in d["touched"])
+    assert fired == [4035, 10239, 14443, 20691, 25506, 28061]
+    ps = [x["paired_p_value"] for _, d in files for t in d["touched"] for x in t["set_aside"]]
+    assert min(ps) >= core.STRICT_PAIRED_ALPHA and max(ps) < core.PAIRED_ALPHA
+    res = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+    synth = json.loads((res / "diagnose_position_friction_paired_round82_synth_1.json").read_text())
+    assert synth["on"]["got"] == synth["off"]["got"] == synth["kept"]["got"] == "position_dependent_friction"
