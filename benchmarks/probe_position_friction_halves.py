@@ -85,15 +85,21 @@ def synth_row(k: int, rule: str = RULE) -> dict:
     return out
 
 
+def synth_cli(argv, rule: str = RULE) -> bool:
+    """``--synth K OUT.json``: :func:`synth_row` of ``K`` for the switch ``rule``, written to OUT.json; False when
+    ``argv`` does not ask for it."""
+    if argv[:1] != ["--synth"]:
+        return False
+    if len(argv) != 3 or not argv[1].isdigit():
+        raise SystemExit("usage: --synth K OUT.json")
+    with open(argv[2], "w") as f:
+        json.dump(synth_row(int(argv[1]), rule=rule), f, indent=1, default=str)
+    return True
+
+
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv[:1] == ["--synth"]:
-        if len(argv) != 3 or not argv[1].isdigit():
-            raise SystemExit("usage: --synth K OUT.json")
-        with open(argv[2], "w") as f:
-            json.dump(synth_row(int(argv[1])), f, indent=1, default=str)
-        return
-    if not against_off_cli(argv):
+    if not synth_cli(argv) and not against_off_cli(argv):
         probe_main(argv, __doc__, keys_cli, run)
 
 

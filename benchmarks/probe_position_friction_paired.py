@@ -15,14 +15,14 @@ round's probe (``probe_position_friction_halves.touchable``).
 """
 from __future__ import annotations
 
-import json
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
-from probe_position_friction_halves import keys_cli, row_class, synth_row, touchable, touchable_keys  # noqa: E402,F401
+from probe_position_friction_halves import (keys_cli, row_class, synth_cli, touchable,  # noqa: E402,F401
+                                             touchable_keys)
 from probe_runner import probe_main, run_rule_probe  # noqa: E402
 
 RULE = "POSITION_FRICTION_STRICT_PAIRED"
@@ -46,13 +46,7 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv[:1] == ["--synth"]:
-        if len(argv) != 3 or not argv[1].isdigit():
-            raise SystemExit("usage: --synth K OUT.json")
-        with open(argv[2], "w") as f:
-            json.dump(synth_row(int(argv[1]), rule=RULE), f, indent=1, default=str)
-        return
-    if not against_off_cli(argv):
+    if not synth_cli(argv, RULE) and not against_off_cli(argv):
         probe_main(argv, __doc__, keys_cli, run)
 
 

@@ -86,6 +86,20 @@ def probe_results(pattern: str):
     return doc, out, differences
 
 
+def probe_lanes(probe, pattern: str, lanes: str = "abc"):
+    """(doc, files, examined, summary) of a rule probe's JSONs ``benchmarks/results/PATTERN`` (:func:`probe_results`),
+    ``probe`` its module (``against_off``, ``against_off_row``): asserts their lanes are ``lanes`` in order and that
+    the docs' table holds each JSON's row as --against-off-rows prints it; ``examined``: the keys examined per family,
+    ``summary``: ``probe.against_off`` over them all."""
+    doc, files, _ = probe_results(pattern)
+    assert [f.name[-12:] for f, _ in files] == [f"_lane_{x}.json" for x in lanes]
+    examined = {"loop": set(), "testbench": set()}
+    for f, d in files:
+        assert probe.against_off_row(f.name, probe.against_off([str(f)])) in doc, f.name
+        examined[d["family"]] |= set(d["keys_examined"])
+    return doc, files, examined, probe.against_off([str(f) for f, _ in files])
+
+
 def search_names(d) -> list:
     """The effects a diagnosis search ``d`` (:func:`drake_est.diagnose.core.run_diagnosis`) names: each step's effect,
     then the rivals of the steps reported ambiguous."""

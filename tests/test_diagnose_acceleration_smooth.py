@@ -73,20 +73,14 @@ def test_not_kept_and_its_tables_are_its_jsons():
     """Not kept (condition 2): the switch is off; the docs' probe table and the fresh logs' counts are the JSONs'."""
     import json
     from pathlib import Path
-    from conftest import bench_module, probe_results
+    from conftest import bench_module, probe_lanes
     assert U.ACCELERATION_SMOOTH_REQUIRED is False
     probe = bench_module("probe_acceleration_smooth")
     fresh = bench_module("bench_acceleration_smooth_fresh")
-    doc, files, _ = probe_results("diagnose_acceleration_smooth_round80_lane_*.json")
-    assert [f.name[-12:] for f, _ in files] == ["_lane_a.json", "_lane_b.json", "_lane_c.json"]
-    examined = {"loop": set(), "testbench": set()}
-    for f, d in files:
-        assert probe.against_off_row(f.name, probe.against_off([str(f)])) in doc
-        examined[d["family"]] |= set(d["keys_examined"])
+    doc, files, examined, s = probe_lanes(probe, "diagnose_acceleration_smooth_round80_lane_*.json")
     # every kept row with an acceleration entry of the code it ran was examined (fresh blocks from 29300 on ran later)
     assert examined["loop"] == {k for k in probe.touchable_keys("loop") if k < 29300} and len(examined["loop"]) == 974
     assert examined["testbench"] == set(probe.touchable_keys("testbench"))
-    s = probe.against_off([str(f) for f, _ in files])
     assert s["wrong_gained"] == [] and s["missed_off"] == 21 and s["missed_on"] == 20
     assert sorted(s["oov_unexplained_lost"]) == [4705, 14495, 14541, 16146, 18258, 27607]
     null_cleared = [c["k"] for c in s["changed"] if c["truth"] == "none" and c["on"] == "none"]

@@ -75,18 +75,12 @@ def test_not_kept_and_its_table_is_its_jsons():
     change was examined (the fresh blocks from 29300 on ran later), and the rule lost planted position frictions."""
     import json
     from pathlib import Path
-    from conftest import bench_module, probe_results
+    from conftest import bench_module, probe_lanes
     assert core.POSITION_FRICTION_ACROSS_HALVES is False
     probe = bench_module("probe_position_friction_halves")
-    doc, files, _ = probe_results("diagnose_position_friction_halves_round81_lane_*.json")
-    assert [f.name[-12:] for f, _ in files] == ["_lane_a.json", "_lane_b.json", "_lane_c.json"]
-    examined = {"loop": set(), "testbench": set()}
-    for f, d in files:
-        assert probe.against_off_row(f.name, probe.against_off([str(f)])) in doc
-        examined[d["family"]] |= set(d["keys_examined"])
+    doc, files, examined, s = probe_lanes(probe, "diagnose_position_friction_halves_round81_lane_*.json")
     assert examined["loop"] == {k for k in probe.touchable_keys("loop") if k < 29300} and len(examined["loop"]) == 489
     assert examined["testbench"] == set(probe.touchable_keys("testbench"))
-    s = probe.against_off([str(f) for f, _ in files])
     assert s["classes_examined"] == {"vocab": 490} and s["fired"] == 16
     assert s["wrong_gained"] == [22757]                      # condition 1 fails: a load named for a position friction
     assert s["oov_unexplained_lost"] == [] and s["null_findings_gained"] == []

@@ -54,18 +54,12 @@ def test_not_kept_and_its_table_is_its_jsons():
     change (blocks up to 29699) was examined, and the missed effects rise."""
     import json
     from pathlib import Path
-    from conftest import bench_module, probe_results
+    from conftest import bench_module, probe_lanes
     assert core.POSITION_FRICTION_STRICT_PAIRED is False
     probe = bench_module("probe_position_friction_paired")
-    doc, files, _ = probe_results("diagnose_position_friction_paired_round82_lane_*.json")
-    assert [f.name[-12:] for f, _ in files] == ["_lane_a.json", "_lane_b.json", "_lane_c.json"]
-    examined = {"loop": set(), "testbench": set()}
-    for f, d in files:
-        assert probe.against_off_row(f.name, probe.against_off([str(f)])) in doc
-        examined[d["family"]] |= set(d["keys_examined"])
+    doc, files, examined, s = probe_lanes(probe, "diagnose_position_friction_paired_round82_lane_*.json")
     assert examined["loop"] == {k for k in probe.touchable_keys("loop") if k < 29700} and len(examined["loop"]) == 499
     assert examined["testbench"] == set(probe.touchable_keys("testbench"))
-    s = probe.against_off([str(f) for f, _ in files])
     assert s["fired"] == 6 and s["wrong_gained"] == [] and s["oov_unexplained_lost"] == []
     assert s["null_findings_gained"] == [] and (s["missed_off"], s["missed_on"]) == (3, 8)
     fired = sorted(t["k"] for _, d in files for t in d["touched"])

@@ -707,7 +707,7 @@ def visited_rows(q, fit_rows, compare_rows, share: float = VISITED_SHARE) -> np.
         out[:] = False
         return out
     if qf.size == 1:
-        return out & (np.abs(q - qf[0]) <= 0.0)
+        return out & (q == qf[0])
     i = np.clip(np.searchsorted(qf, q), 1, qf.size - 1)
     d = np.minimum(np.abs(q - qf[i - 1]), np.abs(q - qf[i]))
     return out & (d <= share * float(qf[-1] - qf[0]))
