@@ -511,7 +511,8 @@ def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float
     """The kept logs (every kept row, at ``sample_rate`` only when given; lane ``i/n``) whose preparation
     (:func:`drake_est.diagnose.nominal.prepare`, no diagnosis) records ``count`` > 0 for some joint, e.g.
     ``beyond_training_speeds``: the logs a change keyed on it can touch.  ``count`` = ``motion_line_gate``: the logs
-    with a joint in :func:`drake_est.diagnose.core.motion_line_gate` (the nominal fit and one candidate, no search).
+    with a joint in :func:`drake_est.diagnose.core.motion_line_gate` (the nominal fit and one candidate, no search);
+    ``unsupported_kernels``: the joints :func:`unsupported_kernel_sizes` lists.
     ``only``: {(family, k)}, the logs to prepare (all kept logs when None).  {"logs": n, "touched": [[family, k,
     {joint: count}], ...], "refused": [...]}."""
     from drake_est.diagnose.nominal import prepare
@@ -546,11 +547,33 @@ def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float
                 with single_thread_blas():
                     got.update({str(j): 1 for j in motion_line_gate(prep)})
                 continue
+            if count == "unsupported_kernels":
+                # the joints where a number of position kernels beyond the smallest has a kernel the training
+                # positions hardly weigh (detectors.supported_sizes; the eighty-third round's rule drops those sizes)
+                got.update({str(j): n for j, n in unsupported_kernel_sizes(prep).items()})
+                continue
             got.update({str(j): int(jd.counts[count]) for j, jd in prep.joints.items() if jd.counts.get(count)})
         if got:
             touched.append([fam, k, got])
     return _touched_summary({"count": count, "sample_rate": sample_rate, "lane": f"{i}/{n}", "logs": n_rows,
                              "touched": touched, "refused": refused})
+
+
+def unsupported_kernel_sizes(prep) -> dict:
+    """{joint: how many of the position laws' kernel counts (:data:`~drake_est.diagnose.detectors.BFE_SIZES`) a
+    joint's training positions do not support} (:func:`~drake_est.diagnose.detectors.supported_sizes`, the
+    detectors' range: the 0.2 % and 99.8 % quantiles), joints with none left out."""
+    import drake_est.diagnose.detectors as det
+    out = {}
+    for j, jd in prep.joints.items():
+        q = jd.q[jd.rows][jd.train]
+        lo, hi = np.quantile(q, [0.002, 0.998])
+        if hi - lo < 0.02:
+            continue
+        n = len(det.BFE_SIZES) - len(det.supported_sizes(q, lo, hi))
+        if n:
+            out[j] = n
+    return out
 
 
 def _touched_summary(out) -> dict:
