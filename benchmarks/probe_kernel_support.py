@@ -22,7 +22,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from probe_held_back_rival import against_off_cli  # noqa: E402
+from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
 from probe_runner import probe_main, run_rule_probe  # noqa: E402
 

@@ -40,10 +40,10 @@ ASYM_MIN_SHARE = 0.05
 #: friction's); 5 lets a 7-per-revolution cogging over one revolution be seen
 RIPPLE_MIN_CYCLES = 5.0
 BFE_SIZES = (8, 16, 32, 64)
-#: eighty-third round (off unless set): a number of position kernels is tried only when every kernel holds at
+#: eighty-third round (kept): a number of position kernels is tried only when every kernel holds at
 #: least :data:`MIN_KERNEL_SUPPORT` training samples' worth of its weight (:func:`kernel_support`); the smallest
 #: size is always tried
-KERNEL_SUPPORT_RULE = False
+KERNEL_SUPPORT_RULE = True
 #: the least summed weight sum_i exp(-(q_i - c_k)^2 / (2 w^2)) over the training rows of each kernel k: one
 #: sample's worth (below it no sample determines the coefficient)
 MIN_KERNEL_SUPPORT = 1.0
