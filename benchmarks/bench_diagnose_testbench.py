@@ -561,16 +561,16 @@ def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float
 
 def unsupported_kernel_sizes(prep) -> dict:
     """{joint: how many of the position laws' kernel counts (:data:`~drake_est.diagnose.detectors.BFE_SIZES`) a
-    joint's training positions do not support} (:func:`~drake_est.diagnose.detectors.supported_sizes`, the
-    detectors' range: the 0.2 % and 99.8 % quantiles), joints with none left out."""
+    joint's training positions do not support} (:func:`~drake_est.diagnose.detectors.supported_sizes` over the
+    detectors' :func:`~drake_est.diagnose.detectors.kernel_range`), joints with none left out."""
     import drake_est.diagnose.detectors as det
     out = {}
     for j, jd in prep.joints.items():
         q = jd.q[jd.rows][jd.train]
-        lo, hi = np.quantile(q, [0.002, 0.998])
-        if hi - lo < 0.02:
+        span = det.kernel_range(q)
+        if span is None:
             continue
-        n = len(det.BFE_SIZES) - len(det.supported_sizes(q, lo, hi))
+        n = len(det.BFE_SIZES) - len(det.supported_sizes(q, *span))
         if n:
             out[j] = n
     return out

@@ -158,14 +158,22 @@ def supported_sizes(q, lo, hi, sizes=None, min_support=None) -> list:
     return [K for i, K in enumerate(sizes) if i == 0 or kernel_support(q, K, lo, hi).min() >= m]
 
 
+def kernel_range(q_train):
+    """(lo, hi) over which the position laws spread their kernels: the 0.2 % and 99.8 % quantiles of the training
+    positions ``q_train``; None when they span less than 0.02."""
+    lo, hi = np.quantile(q_train, [0.002, 0.998])
+    return None if hi - lo < 0.02 else (lo, hi)
+
+
 def _position_kernels(jd, fit_inner, effect):
-    """:func:`position_kernels_at` over the training range, the number of kernels (BFE_SIZES) chosen by
-    ``fit_inner`` (with :data:`KERNEL_SUPPORT_RULE`: among the sizes the training positions support,
+    """:func:`position_kernels_at` over the training range (:func:`kernel_range`), the number of kernels (BFE_SIZES)
+    chosen by ``fit_inner`` (with :data:`KERNEL_SUPPORT_RULE`: among the sizes the training positions support,
     :func:`supported_sizes`). None when the joint spans less than 0.02."""
     q = jd.q[jd.rows]
-    lo, hi = np.quantile(q[jd.train], [0.002, 0.998])
-    if hi - lo < 0.02:
+    span = kernel_range(q[jd.train])
+    if span is None:
         return None
+    lo, hi = span
     best = None
     for K in (supported_sizes(q[jd.train], lo, hi) if KERNEL_SUPPORT_RULE else BFE_SIZES):
         ext = position_kernels_at(jd, effect, K, lo, hi)
