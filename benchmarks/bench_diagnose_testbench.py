@@ -512,7 +512,8 @@ def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float
     (:func:`drake_est.diagnose.nominal.prepare`, no diagnosis) records ``count`` > 0 for some joint, e.g.
     ``beyond_training_speeds``: the logs a change keyed on it can touch.  ``count`` = ``motion_line_gate``: the logs
     with a joint in :func:`drake_est.diagnose.core.motion_line_gate` (the nominal fit and one candidate, no search);
-    ``unsupported_kernels``: the joints :func:`unsupported_kernel_sizes` lists.
+    ``unsupported_kernels``: the joints :func:`unsupported_kernel_sizes` lists; ``unsupported_changes``: the joints
+    :func:`unsupported_change_joints` lists.
     ``only``: {(family, k)}, the logs to prepare (all kept logs when None).  {"logs": n, "touched": [[family, k,
     {joint: count}], ...], "refused": [...]}."""
     from drake_est.diagnose.nominal import prepare
@@ -552,6 +553,12 @@ def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float
                 # positions hardly weigh (detectors.supported_sizes; the eighty-third round's rule drops those sizes)
                 got.update({str(j): n for j, n in unsupported_kernel_sizes(prep).items()})
                 continue
+            if count == "unsupported_changes":
+                # the joints where some split an abrupt change may take leaves a segment that hardly determines the
+                # friction law at the log's extreme speeds (detectors.split_supports; the eighty-fourth round's rule
+                # chooses the change time among the others)
+                got.update({str(j): 1 for j in unsupported_change_joints(prep)})
+                continue
             got.update({str(j): int(jd.counts[count]) for j, jd in prep.joints.items() if jd.counts.get(count)})
         if got:
             touched.append([fam, k, got])
@@ -573,6 +580,27 @@ def unsupported_kernel_sizes(prep) -> dict:
         n = len(det.BFE_SIZES) - len(det.supported_sizes(q, *span))
         if n:
             out[j] = n
+    return out
+
+
+def unsupported_change_joints(prep, min_frac: float = 0.1) -> list:
+    """The joints where a split that :func:`~drake_est.diagnose.detectors.change_point` may take (segments of at least
+    ``min_frac`` of the training rows) leaves a segment below
+    :data:`~drake_est.diagnose.detectors.MIN_CHANGE_SUPPORT` at the log's extreme speeds: a prefix's support only grows
+    with its length, so the shortest first and last segments decide."""
+    import drake_est.diagnose.detectors as det
+    out = []
+    for j, jd in prep.joints.items():
+        v = jd.v[jd.rows]
+        av = np.abs(v[v != 0])
+        vt = v[jd.train]
+        n = vt.size
+        m = max(10, int(min_frac * jd.train.sum()))
+        if av.size == 0 or n < 2 * m:
+            continue
+        before, after = det.split_supports(vt, (float(av.min()), float(av.max())))
+        if min(before[m], after[n - m]) < det.MIN_CHANGE_SUPPORT:
+            out.append(j)
     return out
 
 

@@ -47,6 +47,13 @@ KERNEL_SUPPORT_RULE = True
 #: the least summed weight sum_i exp(-(q_i - c_k)^2 / (2 w^2)) over the training rows of each kernel k: one
 #: sample's worth (below it no sample determines the coefficient)
 MIN_KERNEL_SUPPORT = 1.0
+#: eighty-fourth round (see ``docs/readme/diagnose_testbench.md``): an abrupt change's time is chosen only among the
+#: splits where the training rows on each side hold at least :data:`MIN_CHANGE_SUPPORT` samples' worth of the
+#: Coulomb + viscous law at every speed of the log (:func:`split_supports`); none such: no change candidate
+CHANGE_SUPPORT_RULE = False
+#: the least support (:func:`segment_supports`) of a change's segment at the log's lowest and highest speed: one
+#: sample's worth (the leverage x^T (P^T P)^-1 x of the law's value there at most 1)
+MIN_CHANGE_SUPPORT = 1.0
 #: FFT bins of the frequency scan: the highest frequency scanned is about
 #: RIPPLE_MAX_FFT / (64 span) cycles per rad (e.g. 680 cycles/rad over a 3 rad sweep), or the
 #: sampling-density limit of the positions if lower
@@ -460,6 +467,78 @@ def energy(jd, r, friction_full, fit_train, n_iter=2, energy_fn=None):
     return ext
 
 
+def segment_supports(G, speeds) -> np.ndarray:
+    """Support of the Coulomb + viscous law kv qd + kc sgn(qd) fitted to rows with Gram matrices ``G`` (..., 2, 2) of
+    [qd, sgn(qd)]: the least over ``speeds`` [rad/s] of 1 / (x^T G^-1 x), x = [s, 1], i.e. how many samples' worth
+    of information the rows give the law's value at the worst of those speeds (the reciprocal of its leverage); 0
+    where G is singular.  The leverage is convex in s, so the extreme speeds of a range stand for all of it."""
+    G = np.asarray(G, float)
+    shape = G.shape[:-2]
+    G = G.reshape(-1, 2, 2)
+    X = np.array([[float(s), 1.0] for s in speeds]).T                      # (2, m)
+    tr = G[:, 0, 0] + G[:, 1, 1]
+    det_ = G[:, 0, 0] * G[:, 1, 1] - G[:, 0, 1] * G[:, 1, 0]
+    ok = det_ > 1e-12 * np.maximum(tr, 1e-300) ** 2
+    out = np.zeros(G.shape[0])
+    if ok.any():
+        sol = np.linalg.solve(G[ok], np.broadcast_to(X, (int(ok.sum()),) + X.shape))
+        lev = np.einsum("im,nim->nm", X, sol)
+        out[ok] = 1.0 / np.maximum(lev.max(axis=1), 1e-300)
+    return out.reshape(shape)
+
+
+def split_supports(v, speeds) -> tuple:
+    """(before, after): for every split k = 0..N of the rows with velocities ``v`` (N of them), the support
+    (:func:`segment_supports`) of rows [0, k) and of rows [k, N) at ``speeds``."""
+    v = np.asarray(v, float)
+    P = np.column_stack([v, _sgn(v)])
+    cum = np.concatenate([np.zeros((1, 2, 2)), np.cumsum(P[:, :, None] * P[:, None, :], axis=0)])
+    return segment_supports(cum, speeds), segment_supports(cum[-1] - cum, speeds)
+
+
+def split_costs(Phi, y) -> np.ndarray:
+    """Residual sum of squares of the best single switch of the regression y ~ Phi at each split k = 0..N
+    ((7.8) with one change, both segments fitted by least squares; inf where a segment's Gram matrix is singular)."""
+    Phi = np.asarray(Phi, float)
+    y = np.asarray(y, float)
+    p = Phi.shape[1]
+    z = lambda a: np.concatenate([np.zeros((1,) + a.shape[1:]), np.cumsum(a, axis=0)])
+    G = z(Phi[:, :, None] * Phi[:, None, :])
+    B = z(Phi * y[:, None])
+    yy = z(y * y)
+
+    def cost(Gs, Bs, ys):
+        out = np.full(Gs.shape[0], np.inf)
+        ok = np.abs(np.linalg.det(Gs)) > 1e-12 * np.maximum(np.trace(Gs, axis1=1, axis2=2), 1e-300) ** p
+        if ok.any():
+            sol = np.linalg.solve(Gs[ok], Bs[ok][:, :, None])[:, :, 0]
+            out[ok] = np.maximum(ys[ok] - np.sum(Bs[ok] * sol, axis=1), 0.0)
+        return out
+
+    return cost(G, B, yy) + cost(G[-1] - G, B[-1] - B, yy[-1] - yy)
+
+
+def supported_change(v, Phi, y, k, min_len, speeds, min_support=None):
+    """The switch of :func:`change_point` under :data:`CHANGE_SUPPORT_RULE`: ``k`` (the search's own) when both of its
+    segments (rows [0, k) and [k, N) of the velocities ``v``) support the friction law at ``speeds``
+    (:func:`split_supports`, at least ``min_support``, default :data:`MIN_CHANGE_SUPPORT`), else the least-cost
+    split (:func:`split_costs`) among those of segments of at least ``min_len`` rows that do; None when none does."""
+    m = MIN_CHANGE_SUPPORT if min_support is None else min_support
+    before, after = split_supports(v, speeds)
+    ok = (before >= m) & (after >= m)
+    if ok[k]:
+        return int(k)
+    n = len(v)
+    ok[:max(int(min_len), 1)] = False
+    ok[max(n - int(min_len), 0) + 1:] = False
+    if not ok.any():
+        return None
+    c = np.where(ok, split_costs(Phi, y), np.inf)
+    if not np.isfinite(c).any():
+        return None
+    return int(np.argmin(c))
+
+
 def change_point(jd, r, min_frac=0.1, smooth_alternative=False, energy_cols=None):
     """Abrupt change of the friction parameters (Ch. 7): the best single switch of
     [qd, sign(qd)] parameters over the training samples by dynamic programming (7.8).  With
@@ -480,6 +559,18 @@ def change_point(jd, r, min_frac=0.1, smooth_alternative=False, energy_cols=None
     except DrakeEstError:
         return None
     k = res.change_times[0]
+    seg_params = res.params
+    if CHANGE_SUPPORT_RULE:
+        av = np.abs(v[v != 0])
+        if av.size:
+            k = supported_change(v[tr], Phi[tr], r[tr], k, max(10, int(min_frac * tr.sum())),
+                                 (float(av.min()), float(av.max())))
+            if k is None:
+                return None
+            if k != res.change_times[0]:
+                P, y = Phi[tr], r[tr]
+                seg_params = np.array([np.linalg.lstsq(P[s], y[s], rcond=None)[0]
+                                       for s in (slice(0, k), slice(k, None))])
     # both segments must identify [kv, kc] (e.g. not a single velocity level after the change)
     for seg in (slice(0, k), slice(k, None)):
         P = Phi[tr][seg]
@@ -496,7 +587,7 @@ def change_point(jd, r, min_frac=0.1, smooth_alternative=False, energy_cols=None
     # candidate itself is the smooth competitor in the held-out comparison.
     if not smooth_alternative:
         spec = {"effect": "abrupt_change", "t_change": tc}
-        ev = {"t_change_s": tc, "segment_params_train": res.params.tolist()}
+        ev = {"t_change_s": tc, "segment_params_train": seg_params.tolist()}
         return Extension("abrupt_change", jd.joint, {jd.joint: C}, ["dkv_after", "dkc_after"], spec, ev)
     tt = jd.t[rows]
     s_ = (tt - tt[0]) / max(float(np.ptp(tt)), 1e-12)
@@ -515,7 +606,7 @@ def change_point(jd, r, min_frac=0.1, smooth_alternative=False, energy_cols=None
     if aic[1] <= aic[0]:
         return None
     spec = {"effect": "abrupt_change", "t_change": tc}
-    ev = {"t_change_s": tc, "segment_params_train": res.params.tolist()}
+    ev = {"t_change_s": tc, "segment_params_train": seg_params.tolist()}
     return Extension("abrupt_change", jd.joint, {jd.joint: C}, ["dkv_after", "dkc_after"], spec, ev)
 
 
