@@ -1187,6 +1187,94 @@ def negative_friction(prep, model, fit, ext, sigma) -> dict | None:
     return None
 
 
+#: eighty-fifth round (see ``docs/readme/diagnose_testbench.md``): an abrupt change that :func:`negative_friction`
+#: refuses is searched again among the switches where the model with it dissipates (:func:`dissipative_change`)
+DISSIPATIVE_CHANGE_RULE = False
+
+
+def dissipative_switches(prep, model, fit, sigma, j, min_len) -> list:
+    """The training-row switches k (segments of at least ``min_len`` rows) of an abrupt change on joint ``j`` where
+    ``model`` with the change, fitted by least squares on the training rows, leaves a friction that dissipates before
+    and after it at the log's lowest and highest speed (as :func:`negative_friction` asks, to within
+    :data:`NEGATIVE_FRICTION_SIGMAS` noise levels), ordered by that fit's training residual, the best first.
+
+    All switches at once: with the model's columns X and the change's columns C_k = [qd, sign(qd)] after k, the
+    change's coefficients are d_k = (C_k^T M C_k)^-1 C_k^T r (M projects out X, r is X's residual) and X's move by
+    -(X^T X)^-1 X^T C_k d_k (Frisch-Waugh-Lovell); C_k^T C_k, X^T C_k and C_k^T r are suffix sums.  [] where the
+    model holds shared columns or X is rank deficient."""
+    if model.shared_exts():
+        return []
+    jd = prep.joints[j]
+    X = model.design(j)[jd.train]
+    y = jd.y[jd.train]
+    v = jd.v[jd.rows][jd.train]
+    n, p = X.shape
+    if n < 2 * max(int(min_len), 1) + 1:
+        return []
+    Q, R = np.linalg.qr(X)
+    if np.min(np.abs(np.diag(R))) <= 1e-10 * np.max(np.abs(np.diag(R))):
+        return []
+    c0 = scipy.linalg.solve_triangular(R, Q.T @ y)
+    r0 = y - X @ c0
+    P = np.column_stack([v, det._sgn(v)])
+
+    def suffix(a):
+        out = np.zeros((a.shape[0] + 1,) + a.shape[1:])
+        out[:-1] = np.cumsum(a[::-1], axis=0)[::-1]
+        return out
+
+    G = suffix(P[:, :, None] * P[:, None, :])                       # C_k^T C_k
+    S = suffix(X[:, :, None] * P[:, None, :])                       # X^T C_k
+    b = suffix(P * r0[:, None])                                     # C_k^T r
+    ks = np.arange(max(int(min_len), 1), n - max(int(min_len), 1) + 1)
+    Sk = S[ks]
+    Z = scipy.linalg.solve_triangular(R, Sk.transpose(1, 0, 2).reshape(p, -1), trans="T")
+    W = scipy.linalg.solve_triangular(R, Z).reshape(p, ks.size, 2).transpose(1, 0, 2)   # (X^T X)^-1 X^T C_k
+    K = G[ks] - np.einsum("kpi,kpj->kij", Sk, W)
+    ok = np.linalg.det(K) > 1e-12 * np.maximum(np.trace(K, axis1=1, axis2=2), 1e-300) ** 2
+    if not ok.any():
+        return []
+    ks, K, W, bk = ks[ok], K[ok], W[ok], b[ks][ok]
+    d = np.linalg.solve(K, bk[:, :, None])[:, :, 0]
+    rss = float(r0 @ r0) - np.sum(bk * d, axis=1)
+    names = nominal_names(prep.robot_kind)
+    ikv, ikc = names.index("kv"), names.index("kc")
+    dX = -np.einsum("kpi,ki->kp", W, d)
+    kv_b, kc_b = c0[ikv] + dX[:, ikv], c0[ikc] + dX[:, ikc]
+    laws = [(kc_b, kv_b), (kc_b + d[:, 1], kv_b + d[:, 0])]
+    vall = jd.v[jd.rows]
+    av = np.abs(vall[vall != 0])
+    if av.size == 0:
+        return []
+    slack = NEGATIVE_FRICTION_SIGMAS * float(sigma.get(j, 0.0))
+    good = np.ones(ks.size, bool)
+    for kc_, kv_ in laws:
+        for sp in (float(av.min()), float(av.max())):
+            good &= kc_ + kv_ * sp >= -slack
+    order = np.argsort(rss[good], kind="stable")
+    return [int(k) for k in ks[good][order]]
+
+
+def dissipative_change(prep, model, fit, sigma, ext, min_frac: float = 0.1):
+    """Under :data:`DISSIPATIVE_CHANGE_RULE`: the abrupt change ``ext`` that :func:`negative_friction` refused, at the
+    best switch of :func:`dissipative_switches` instead (:func:`~drake_est.diagnose.detectors.change_at_split`, with
+    the same identifiability check and smooth alternative as the search); its evidence holds
+    ``refused_t_change_s``.  None when no switch dissipates or the candidate there fails those checks."""
+    j = ext.joint
+    jd = prep.joints[j]
+    min_len = max(10, int(min_frac * jd.train.sum()))
+    ks = dissipative_switches(prep, model, fit, sigma, j, min_len)
+    if not ks:
+        return None
+    ecols = _energy_cols(model, j)
+    new = det.change_at_split(jd, _residual(prep, fit, j), ks[0], None, smooth_alternative=ecols is not None,
+                              energy_cols=ecols)
+    if new is None:
+        return None
+    new.evidence["refused_t_change_s"] = float(ext.spec["t_change"])
+    return new
+
+
 def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, changed=None):
     """One round of candidates on ``model``'s residual: [(ext, test, fit1, model1)], each test with
     ``significant`` (:func:`_evaluate`)."""
@@ -1195,7 +1283,7 @@ def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, chang
                 _candidates(prep, model, fit, accepted, cache, changed))
 
 
-def _evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state) -> tuple:
+def _evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state, retry=True) -> tuple:
     """(ext, test, fit1, model1) of one candidate ``ext`` on ``model``'s residual; the test's ``significant``: the
     held-out F-test, gain, score, the quantization guard, no negative friction, the paired held-out block test
     (:func:`~drake_est.diagnose.competition.paired_block_test` at :data:`PAIRED_ALPHA`) and, for a time-periodic
@@ -1213,6 +1301,15 @@ def _evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state) -> tuple:
             tst["below_quantization_step"] = True
     if tst["significant"]:
         neg = negative_friction(prep, m1, f1, ext, sigma)
+        if neg is not None and retry and DISSIPATIVE_CHANGE_RULE and ext.effect == "abrupt_change" and not ext.shared:
+            # the switch the search chose leaves no friction somewhere: the best switch that leaves one instead,
+            # when it passes every test (else the refused one's result stands)
+            new = dissipative_change(prep, model, fit, sigma, ext)
+            if new is not None:
+                out = _evaluate(prep, model, fit, sigma, new, alpha, min_gain, state, retry=False)
+                if out[1]["significant"]:
+                    out[1]["refused_switch"] = {"t_change_s": float(ext.spec["t_change"]), **neg}
+                    return out
         if neg is not None:
             tst["significant"] = False
             tst["negative_friction"] = neg

@@ -571,6 +571,21 @@ def change_point(jd, r, min_frac=0.1, smooth_alternative=False, energy_cols=None
                 P, y = Phi[tr], r[tr]
                 seg_params = np.array([np.linalg.lstsq(P[s], y[s], rcond=None)[0]
                                        for s in (slice(0, k), slice(k, None))])
+    return change_at_split(jd, r, k, seg_params, smooth_alternative, energy_cols)
+
+
+def change_at_split(jd, r, k, seg_params=None, smooth_alternative=False, energy_cols=None):
+    """The abrupt-change candidate of :func:`change_point` with its switch between training rows ``k - 1`` and ``k``
+    of joint ``jd`` (``r``: the residual at the used rows; ``seg_params``: the segments' [kv, kc] on it, fitted here
+    when None): None when a segment does not identify [kv, kc] or, with ``smooth_alternative``, when a smooth drift
+    fits the training residual as well by AIC."""
+    tr = jd.train
+    rows = jd.rows
+    v = jd.v[rows]
+    Phi = np.column_stack([v, _sgn(v)])
+    if seg_params is None:
+        P, y = Phi[tr], r[tr]
+        seg_params = np.array([np.linalg.lstsq(P[s], y[s], rcond=None)[0] for s in (slice(0, k), slice(k, None))])
     # both segments must identify [kv, kc] (e.g. not a single velocity level after the change)
     for seg in (slice(0, k), slice(k, None)):
         P = Phi[tr][seg]
