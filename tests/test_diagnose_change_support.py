@@ -129,3 +129,19 @@ def test_spec_30172_names_the_change_with_the_rule_on(monkeypatch):
     on = diagnose(log, robot="generic", seed=0, simulate=False)
     got = {f["effect"] for f in on.findings}
     assert got == set(truth["planted"]) == {"abrupt_change", "motor_position_ripple"}
+
+
+def test_not_kept_and_its_table_is_its_json():
+    """Not kept: the switch is off; the docs' table holds the probe JSON's row as --against-off-rows prints it; the
+    screen listed exactly the logs examined; the rule mended 30172 but gave 30150 a wrong name (condition 1 fails)."""
+    from pathlib import Path
+    from conftest import bench_module, probe_lanes
+    assert det.CHANGE_SUPPORT_RULE is False
+    probe = bench_module("probe_change_support")
+    doc, files, examined, s = probe_lanes(probe, "diagnose_change_support_round84_lane_*.json", lanes="a")
+    res = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+    screen = res / "diagnose_change_support_round84_screen_a.json"
+    assert set(files[0][1]["keys_examined"]) == set(probe.screened_keys([str(screen)]))
+    assert examined["loop"] <= set(range(30100, 30200)) and 30172 in examined["loop"]
+    assert s["wrong_gained"] == [30150] and s["wrong_lost"] == [30172]
+    assert "### Eighty-fourth round, not kept by its own conditions" in doc
