@@ -79,3 +79,24 @@ def test_spec_30150_stays_correct(monkeypatch, on):
     monkeypatch.setattr(core, "DISSIPATIVE_CHANGE_RULE", on)
     d = diagnose(log, robot="generic", seed=0, simulate=False)
     assert {f["effect"] for f in d.findings} == set(truth["planted"])
+
+
+def test_kept_and_its_table_is_its_jsons():
+    """Kept: the switch is on; the docs' table holds each probe JSON's row as --against-off-rows prints it; lane a is
+    the fresh blocks 30100-30499 and lane b every 60th kept closed-loop log; no row gained a wrong name, lost
+    `unexplained` or a finding on a null log, and the missed effects did not rise; 30172 lost its wrong name and its
+    rule-on row is now its kept row (folded), as is 6611's; no row off differs from its kept row."""
+    from conftest import bench_module, probe_lanes, probe_results
+    assert core.DISSIPATIVE_CHANGE_RULE is True
+    probe = bench_module("probe_dissipative_change")
+    doc, files, examined, s = probe_lanes(probe, "diagnose_dissipative_change_round85_lane_*.json", lanes="ab")
+    assert set(files[0][1]["keys_examined"]) == set(range(30100, 30500))
+    assert len(files[1][1]["keys_examined"]) == 508
+    assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == s["outright_lost"] == []
+    assert s["wrong_lost"] == [30172] and s["missed_on"] <= s["missed_off"]
+    assert s["off_differs_from_kept_row"] == []
+    _, _, differences = probe_results("diagnose_dissipative_change_round85_lane_*.json")
+    for f, d in files:
+        assert differences(d) == [], f.name          # the rule-on rows are the kept rows now
+    n = len(examined["loop"])
+    assert f"**{n} of the" in " ".join(doc.split())

@@ -1187,9 +1187,9 @@ def negative_friction(prep, model, fit, ext, sigma) -> dict | None:
     return None
 
 
-#: eighty-fifth round (see ``docs/readme/diagnose_testbench.md``): an abrupt change that :func:`negative_friction`
+#: eighty-fifth round (kept; see ``docs/readme/diagnose_testbench.md``): an abrupt change that :func:`negative_friction`
 #: refuses is searched again among the switches where the model with it dissipates (:func:`dissipative_change`)
-DISSIPATIVE_CHANGE_RULE = False
+DISSIPATIVE_CHANGE_RULE = True
 
 
 def dissipative_switches(prep, model, fit, sigma, j, min_len) -> list:
