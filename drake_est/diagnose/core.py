@@ -1285,8 +1285,11 @@ def _round(prep, model, fit, sigma, accepted, alpha, min_gain, cache=None, chang
 
 def _evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state, retry=True) -> tuple:
     """(ext, test, fit1, model1) of one candidate ``ext`` on ``model``'s residual; the test's ``significant``: the
-    held-out F-test, gain, score, the quantization guard, no negative friction, the paired held-out block test
-    (:func:`~drake_est.diagnose.competition.paired_block_test` at :data:`PAIRED_ALPHA`) and, for a time-periodic
+    held-out F-test, gain, score, the quantization guard, no negative friction (an abrupt change refused there is
+    evaluated again at the best switch that leaves a friction, :func:`dissipative_change`, when ``retry`` and
+    :data:`DISSIPATIVE_CHANGE_RULE`; it stands in for the refused one when it passes every test), the paired
+    held-out block test (:func:`~drake_est.diagnose.competition.paired_block_test` at :data:`PAIRED_ALPHA`) and, for a
+    time-periodic
     candidate at a line of the motion, the free function of the state (``state``: the round's nuisance per joint)."""
     m1 = Model(prep, model.exts + [ext])
     f1 = m1.fit(sigma)
