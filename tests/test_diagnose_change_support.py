@@ -70,7 +70,8 @@ def test_split_costs_match_the_brute_force_single_switch():
 
 
 def _slow_tail(seed=3):
-    """Fast moves, a change of friction at row 300, slow moves only from row 420, a misfit from row 480 (the design log's shape)."""
+    """Fast moves, a change of friction at row 300, slow moves only from row 420, a misfit from row 480 (the design
+    log's shape)."""
     rng = np.random.default_rng(seed)
     n = 600
     sp = np.where(np.arange(n) < 420, rng.uniform(0.1, 1.0, n), rng.uniform(0.04, 0.05, n))
@@ -118,7 +119,8 @@ def test_change_point_moves_the_switch_only_with_the_rule_on(monkeypatch):
 def test_spec_30172_names_the_change_with_the_rule_on(monkeypatch):
     """The design log: with the rule off the change's switch leaves a slow-only segment, its friction turns negative
     at the log's top speed, the change is refused and an energy drift named; with the rule on the change is named.
-    Both with the eighty-fifth round's switch off (the diagnosis this round was tried on; that round mends 30172 too)."""
+    Both with the eighty-fifth round's switch off (the diagnosis this round was tried on; that round mends 30172
+    too)."""
     from conftest import closed_loop_case
     from drake_est.diagnose import core, diagnose
     _, _, log, truth = closed_loop_case(30172)
