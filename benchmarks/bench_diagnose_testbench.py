@@ -592,13 +592,13 @@ def unsupported_change_joints(prep, min_frac: float = 0.1) -> list:
     out = []
     for j, jd in prep.joints.items():
         v = jd.v[jd.rows]
-        av = np.abs(v[v != 0])
+        speeds = det.extreme_speeds(v)
         vt = v[jd.train]
         n = vt.size
-        m = max(10, int(min_frac * jd.train.sum()))
-        if av.size == 0 or n < 2 * m:
+        m = det.change_min_length(jd.train.sum(), min_frac)
+        if speeds is None or n < 2 * m:
             continue
-        before, after = det.split_supports(vt, (float(av.min()), float(av.max())))
+        before, after = det.split_supports(vt, speeds)
         if min(before[m], after[n - m]) < det.MIN_CHANGE_SUPPORT:
             out.append(j)
     return out

@@ -21,7 +21,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
-from probe_runner import probe_main, run_rule_probe  # noqa: E402
+from probe_runner import keys_args, probe_main, run_rule_probe  # noqa: E402
 
 RULE = "DISSIPATIVE_CHANGE_RULE"
 FUNC = "dissipative_change"
@@ -37,13 +37,7 @@ def lane_keys(lane: str, family: str = "loop", results_dir=None) -> list:
 
 def keys_cli(argv) -> None:
     """``--keys lane I/N [--family=F]``: print :func:`lane_keys`."""
-    family = "loop"
-    rest = []
-    for a in argv[1:]:
-        if a.startswith("--family="):
-            family = a.split("=", 1)[1]
-        else:
-            rest.append(a)
+    family, rest = keys_args(argv)
     if len(rest) != 2 or rest[0] != "lane":
         raise SystemExit("--keys: expected 'lane I/N'")
     print(" ".join(str(k) for k in lane_keys(rest[1], family)))

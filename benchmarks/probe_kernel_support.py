@@ -16,7 +16,6 @@ then diagnosed with the rule on and, where it dropped a size, again off:
 """
 from __future__ import annotations
 
-import json
 import os
 import sys
 
@@ -24,36 +23,23 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
-from probe_runner import probe_main, run_rule_probe  # noqa: E402
+from probe_runner import probe_main, run_rule_probe, screen_keys_cli  # noqa: E402
+from probe_runner import screened_keys as runner_screened_keys  # noqa: E402
 
 RULE = "KERNEL_SUPPORT_RULE"
 FUNC = "supported_sizes"
+COUNT = "unsupported_kernels"
 
 
 def screened_keys(paths, family: str = "loop") -> list:
     """The spec numbers of ``family`` that the screens ``paths`` (``--kept-with-count unsupported_kernels`` JSONs)
-    list as touched, sorted."""
-    out = set()
-    for p in paths:
-        d = json.load(open(p))
-        if d.get("count") != "unsupported_kernels":
-            raise SystemExit(f"{p}: not an unsupported_kernels screen (count = {d.get('count')!r})")
-        out |= {int(k) for f, k, _ in d["touched"] if f == family}
-    return sorted(out)
+    list as touched, sorted (:func:`probe_runner.screened_keys`)."""
+    return runner_screened_keys(paths, COUNT, family)
 
 
 def keys_cli(argv) -> None:
     """``--keys SCREEN.json ... [--family=F]``: print :func:`screened_keys`."""
-    family = "loop"
-    paths = []
-    for a in argv[1:]:
-        if a.startswith("--family="):
-            family = a.split("=", 1)[1]
-        else:
-            paths.append(a)
-    if not paths:
-        raise SystemExit("--keys: give the screens' JSON files")
-    print(" ".join(str(k) for k in screened_keys(paths, family)))
+    screen_keys_cli(argv, COUNT)
 
 
 def _record(got, a, kw):

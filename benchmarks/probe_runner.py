@@ -88,6 +88,39 @@ def run_rule_probe(out_path: str, keys, family: str, *, rule: str, func: str, re
     return res
 
 
+def keys_args(argv) -> tuple:
+    """(family, the other arguments) of a probe's ``--keys ... [--family=F]`` command line (``argv[0]`` is
+    ``--keys``); the family is ``loop`` unless given."""
+    family, rest = "loop", []
+    for a in argv[1:]:
+        if a.startswith("--family="):
+            family = a.split("=", 1)[1]
+        else:
+            rest.append(a)
+    return family, rest
+
+
+def screened_keys(paths, count: str, family: str = "loop") -> list:
+    """The spec numbers of ``family`` that the screens ``paths`` (``bench_diagnose_testbench.py --kept-with-count
+    COUNT`` JSONs) list as touched, sorted; exits when a file is a screen of another count."""
+    import json
+    out = set()
+    for p in paths:
+        d = json.load(open(p))
+        if d.get("count") != count:
+            raise SystemExit(f"{p}: not an {count} screen (count = {d.get('count')!r})")
+        out |= {int(k) for f, k, _ in d["touched"] if f == family}
+    return sorted(out)
+
+
+def screen_keys_cli(argv, count: str) -> None:
+    """``--keys SCREEN.json ... [--family=F]``: print :func:`screened_keys` of the ``count`` screens given."""
+    family, paths = keys_args(argv)
+    if not paths:
+        raise SystemExit("--keys: give the screens' JSON files")
+    print(" ".join(str(k) for k in screened_keys(paths, count, family)))
+
+
 def probe_main(argv, doc: str, keys_cli, run) -> None:
     """The command line every probe shares: ``--keys ...`` (``keys_cli(argv)`` prints the keys), ``--table-row`` and
     ``--summary`` (:func:`probe_jitter_second_differences.report_cli`), else ``[--family=F] OUT.json K...`` given to

@@ -1176,11 +1176,11 @@ def negative_friction(prep, model, fit, ext, sigma) -> dict | None:
             return None
         kev = c[1] if c.size > 1 else 0.0
         sides = [(f"at energy state E = {e:.3g}", kc + c[0] * e, kv + kev * e) for e in (float(E.min()), float(E.max()))]
-    av = np.abs(v[v != 0])
-    if av.size == 0:
+    speeds = det.extreme_speeds(v)
+    if speeds is None:
         return None
     for where, kc_s, kv_s in sides:
-        for sp in (float(av.min()), float(av.max())):
+        for sp in speeds:
             f = kc_s + kv_s * sp
             if f < -slack:
                 return {"where": where, "speed": sp, "friction_torque": float(f), "kc": float(kc_s), "kv": float(kv_s)}
@@ -1242,14 +1242,13 @@ def dissipative_switches(prep, model, fit, sigma, j, min_len) -> list:
     dX = -np.einsum("kpi,ki->kp", W, d)
     kv_b, kc_b = c0[ikv] + dX[:, ikv], c0[ikc] + dX[:, ikc]
     laws = [(kc_b, kv_b), (kc_b + d[:, 1], kv_b + d[:, 0])]
-    vall = jd.v[jd.rows]
-    av = np.abs(vall[vall != 0])
-    if av.size == 0:
+    speeds = det.extreme_speeds(jd.v[jd.rows])
+    if speeds is None:
         return []
     slack = NEGATIVE_FRICTION_SIGMAS * float(sigma.get(j, 0.0))
     good = np.ones(ks.size, bool)
     for kc_, kv_ in laws:
-        for sp in (float(av.min()), float(av.max())):
+        for sp in speeds:
             good &= kc_ + kv_ * sp >= -slack
     order = np.argsort(rss[good], kind="stable")
     return [int(k) for k in ks[good][order]]
@@ -1262,8 +1261,7 @@ def dissipative_change(prep, model, fit, sigma, ext, min_frac: float = 0.1):
     ``refused_t_change_s``.  None when no switch dissipates or the candidate there fails those checks."""
     j = ext.joint
     jd = prep.joints[j]
-    min_len = max(10, int(min_frac * jd.train.sum()))
-    ks = dissipative_switches(prep, model, fit, sigma, j, min_len)
+    ks = dissipative_switches(prep, model, fit, sigma, j, det.change_min_length(jd.train.sum(), min_frac))
     if not ks:
         return None
     ecols = _energy_cols(model, j)

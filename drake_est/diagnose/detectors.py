@@ -467,6 +467,27 @@ def energy(jd, r, friction_full, fit_train, n_iter=2, energy_fn=None):
     return ext
 
 
+def change_min_length(n_train: int, min_frac: float = 0.1) -> int:
+    """The shortest segment [training rows] of an abrupt change's switch: ``min_frac`` of the ``n_train`` training
+    rows, at least 10 (:func:`change_point`, and every search or screen of its switches)."""
+    return max(10, int(min_frac * n_train))
+
+
+def extreme_speeds(v):
+    """(lowest, highest) |qd| over the nonzero velocities ``v`` [rad/s], the speeds at which a friction law in time
+    must still dissipate (``core.negative_friction``); None when no velocity is nonzero."""
+    av = np.abs(np.asarray(v, float))
+    av = av[av != 0]
+    return (float(av.min()), float(av.max())) if av.size else None
+
+
+def prefix_sums(a) -> np.ndarray:
+    """Sums of ``a`` over its first 0, 1, ..., N rows (N + 1 of them, the first all zeros): a segment [i, k)'s sum is
+    ``out[k] - out[i]``."""
+    a = np.asarray(a, float)
+    return np.concatenate([np.zeros((1,) + a.shape[1:]), np.cumsum(a, axis=0)])
+
+
 def segment_supports(G, speeds) -> np.ndarray:
     """Support of the Coulomb + viscous law kv qd + kc sgn(qd) fitted to rows with Gram matrices ``G`` (..., 2, 2) of
     [qd, sgn(qd)]: the least over ``speeds`` [rad/s] of 1 / (x^T G^-1 x), x = [s, 1], i.e. how many samples' worth
@@ -492,7 +513,7 @@ def split_supports(v, speeds) -> tuple:
     (:func:`segment_supports`) of rows [0, k) and of rows [k, N) at ``speeds``."""
     v = np.asarray(v, float)
     P = np.column_stack([v, _sgn(v)])
-    cum = np.concatenate([np.zeros((1, 2, 2)), np.cumsum(P[:, :, None] * P[:, None, :], axis=0)])
+    cum = prefix_sums(P[:, :, None] * P[:, None, :])
     return segment_supports(cum, speeds), segment_supports(cum[-1] - cum, speeds)
 
 
@@ -502,10 +523,9 @@ def split_costs(Phi, y) -> np.ndarray:
     Phi = np.asarray(Phi, float)
     y = np.asarray(y, float)
     p = Phi.shape[1]
-    z = lambda a: np.concatenate([np.zeros((1,) + a.shape[1:]), np.cumsum(a, axis=0)])
-    G = z(Phi[:, :, None] * Phi[:, None, :])
-    B = z(Phi * y[:, None])
-    yy = z(y * y)
+    G = prefix_sums(Phi[:, :, None] * Phi[:, None, :])
+    B = prefix_sums(Phi * y[:, None])
+    yy = prefix_sums(y * y)
 
     def cost(Gs, Bs, ys):
         out = np.full(Gs.shape[0], np.inf)
@@ -555,23 +575,18 @@ def change_point(jd, r, min_frac=0.1, smooth_alternative=False, energy_cols=None
     v = jd.v[rows]
     Phi = np.column_stack([v, _sgn(v)])
     try:
-        res = tv_regression_segments(Phi[tr], r[tr], 1, min_length=max(10, int(min_frac * tr.sum())))
+        res = tv_regression_segments(Phi[tr], r[tr], 1, min_length=change_min_length(tr.sum(), min_frac))
     except DrakeEstError:
         return None
     k = res.change_times[0]
-    seg_params = res.params
-    if CHANGE_SUPPORT_RULE:
-        av = np.abs(v[v != 0])
-        if av.size:
-            k = supported_change(v[tr], Phi[tr], r[tr], k, max(10, int(min_frac * tr.sum())),
-                                 (float(av.min()), float(av.max())))
-            if k is None:
-                return None
-            if k != res.change_times[0]:
-                P, y = Phi[tr], r[tr]
-                seg_params = np.array([np.linalg.lstsq(P[s], y[s], rcond=None)[0]
-                                       for s in (slice(0, k), slice(k, None))])
-    return change_at_split(jd, r, k, seg_params, smooth_alternative, energy_cols)
+    speeds = extreme_speeds(v) if CHANGE_SUPPORT_RULE else None
+    if speeds is not None:
+        k = supported_change(v[tr], Phi[tr], r[tr], k, change_min_length(tr.sum(), min_frac), speeds)
+        if k is None:
+            return None
+    # a moved switch's segments are fitted again by change_at_split
+    return change_at_split(jd, r, k, res.params if k == res.change_times[0] else None, smooth_alternative,
+                           energy_cols)
 
 
 def change_at_split(jd, r, k, seg_params=None, smooth_alternative=False, energy_cols=None):
