@@ -2089,6 +2089,27 @@ def gain_within_rounding(prep, model, min_gain: float = MIN_ROUNDING_LOGLIK_GAIN
     return None
 
 
+#: (eighty-sixth round) :func:`later_position_law_within_finer_basis` also holds a motor-position ripple found after
+#: its joint's first position law against that law at a finer resolution: a ripple of a few cycles per radian with a
+#: speed-dependent amplitude is a smooth law of the position too, and takes what a coarse kernel basis leaves (fresh
+#: spec 31089); rule: ``benchmarks/results/diagnose_finer_basis_ripple_round86_rule.txt``
+FINER_BASIS_RIPPLE_RULE = False
+
+
+def _later_than_first_position_law(model, j) -> tuple:
+    """(the first position law of joint ``j`` in ``model``, the findings after it that
+    :func:`later_position_law_within_finer_basis` holds against it: the later position laws and, with
+    :data:`FINER_BASIS_RIPPLE_RULE`, the later motor-position ripples), or (None, [])."""
+    own = model.own(j)
+    laws = [e for e in own if e.effect in comp.POSITION_LAWS]
+    if not laws:
+        return None, []
+    first = laws[0]
+    later = [e for e in own[own.index(first) + 1:] if e.effect in comp.POSITION_LAWS
+             or (FINER_BASIS_RIPPLE_RULE and e.effect == "motor_position_ripple")]
+    return first, later
+
+
 def later_position_law_within_finer_basis(prep, model, min_gain: float = MIN_GAIN):
     """A later position law (:data:`~drake_est.diagnose.competition.POSITION_LAWS`) on a joint whose final ``model``
     already holds an earlier one, that the earlier law at a finer resolution explains as well.  The inner split
@@ -2098,13 +2119,16 @@ def later_position_law_within_finer_basis(prep, model, min_gain: float = MIN_GAI
     then a load named for its misfit, 2 % lower held-out RMSE; the friction alone at 16 kernels predicts the held-out
     data as well as both).  The earlier law is refitted at the next finer size over the same range (its sign or its
     gravity harmonics as before) without the later one; when the model with both does not lower the joint's
-    held-out RMSE by ``min_gain`` against it, the later law is returned as ``(ext, why)``, else None."""
+    held-out RMSE by ``min_gain`` against it, the later law is returned as ``(ext, why)``, else None.  With
+    :data:`FINER_BASIS_RIPPLE_RULE` a later motor-position ripple is held against it alike (fresh spec 31089: a
+    position friction of two bumps 0.2 and 0.31 rad wide at 50 Hz, fitted with 8 kernels 0.34 rad apart, then a
+    ripple of 2.07 cycles/rad with a speed-dependent amplitude named for the misfit, 2.2 % lower held-out RMSE; the
+    friction alone at 16 kernels predicts the held-out data 1.9 % better than both)."""
     fit = None
     for j, jd in prep.joints.items():
-        laws = [e for e in model.own(j) if e.effect in comp.POSITION_LAWS]
-        if len(laws) < 2:
+        first, later = _later_than_first_position_law(model, j)
+        if not later:
             continue
-        first = laws[0]
         centers = first.spec.get("centers")
         if not centers or len(centers) < 2:
             continue
@@ -2117,7 +2141,7 @@ def later_position_law_within_finer_basis(prep, model, min_gain: float = MIN_GAI
             fit = model.fit()
         n_val = max(int(jd.val.sum()), 1)
         rmse = float(np.sqrt(fit.rss_val[j] / n_val))
-        for e in laws[1:]:
+        for e in later:
             alt = Model(prep, [refined if x is first else x for x in model.exts if x is not e])
             rmse_alt = float(np.sqrt(alt.fit().rss_val[j] / n_val))
             gain = 1.0 - rmse / rmse_alt if rmse_alt > 0 else 0.0

@@ -1,0 +1,78 @@
+"""The eighty-sixth round's probe: a motor-position ripple found after its joint's first position law is held against
+that law at a finer resolution, as a later position law is (``core.FINER_BASIS_RIPPLE_RULE``; rule file:
+``benchmarks/results/diagnose_finer_basis_ripple_round86_rule.txt``).
+
+Fresh closed-loop spec 31089 (a position friction of two bumps at 50 Hz) is named the friction with 8 kernels and a
+ripple of 2.07 cycles/rad beside it; the friction alone at 16 kernels predicts the held-out data better than both.
+The check acts on the final model, so the probe diagnoses each log given with the rule on and, where it set a ripple
+aside, again off:
+
+    python benchmarks/probe_finer_basis_ripple.py --keys named > k.txt            # closed-loop logs
+    python benchmarks/probe_finer_basis_ripple.py --keys named --family=testbench > kt.txt
+    OPENBLAS_NUM_THREADS=1 python benchmarks/probe_finer_basis_ripple.py OUT.json $(cat k.txt)
+    python benchmarks/probe_finer_basis_ripple.py --against-off-rows A.json B.json
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
+from probe_position_friction_halves import row_class  # noqa: E402,F401
+from probe_runner import keys_args, probe_main, run_rule_probe  # noqa: E402
+
+RULE = "FINER_BASIS_RIPPLE_RULE"
+FUNC = "later_position_law_within_finer_basis"
+POSITION_LAWS = ("position_dependent_friction", "position_dependent_load")
+
+
+def names_pair(r: dict) -> bool:
+    """Whether a kept row names a motor-position ripple and a position law among its planted effects, findings or
+    findings set aside (the rows whose diagnosis may have held the pair in a final model)."""
+    said = [r["truth"], r["got"], " ".join(r.get("set_aside", []))]
+    return (any("motor_position_ripple" in x for x in said)
+            and any(law in x for x in said for law in POSITION_LAWS))
+
+
+def named_keys(family: str = "loop", results_dir=None) -> list:
+    """The spec numbers of ``family``'s kept rows that :func:`names_pair`, sorted."""
+    import bench_diagnose_testbench as B
+    return sorted(k for (f, _, k), (_, r) in B.kept_rows_naming("any", results_dir).items()
+                  if f == family and names_pair(r))
+
+
+def keys_cli(argv) -> None:
+    """``--keys named [--family=F]``: print :func:`named_keys`."""
+    family, rest = keys_args(argv)
+    if rest != ["named"]:
+        raise SystemExit("--keys: expected 'named'")
+    print(" ".join(str(k) for k in named_keys(family)))
+
+
+def _record(got, a, kw):
+    """The record of one firing: the check set a ripple aside (None otherwise; a later position law set aside is the
+    check as it was)."""
+    if got is None or got[0].effect != "motor_position_ripple":
+        return None
+    e, why = got
+    return {"effect": e.effect, "joint": int(e.joint), "kernels_finer": int(why["kernels_finer"]),
+            "gain_over_finer": float(why["gain_over_finer"])}
+
+
+def run(out_path: str, keys, family: str = "loop") -> dict:
+    """Diagnose the kept logs ``keys`` of ``family`` with the rule on; where it set a ripple aside, store the rows and
+    the rows of the same logs with the rule off."""
+    return run_rule_probe(out_path, keys, family, rule=RULE, func=FUNC, record=_record, hits_key="set_aside",
+                          row_class=row_class, compare_off=True, module="core")
+
+
+def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not against_off_cli(argv):
+        probe_main(argv, __doc__, keys_cli, run)
+
+
+if __name__ == "__main__":
+    main()
