@@ -2089,11 +2089,12 @@ def gain_within_rounding(prep, model, min_gain: float = MIN_ROUNDING_LOGLIK_GAIN
     return None
 
 
-#: (eighty-sixth round) :func:`later_position_law_within_finer_basis` also holds a motor-position ripple found after
-#: its joint's first position law against that law at a finer resolution: a ripple of a few cycles per radian with a
-#: speed-dependent amplitude is a smooth law of the position too, and takes what a coarse kernel basis leaves (fresh
-#: spec 31089); rule: ``benchmarks/results/diagnose_finer_basis_ripple_round86_rule.txt``
-FINER_BASIS_RIPPLE_RULE = False
+#: eighty-sixth round (kept; see ``docs/readme/diagnose_testbench.md``): :func:`later_position_law_within_finer_basis`
+#: also holds a motor-position ripple found after its joint's first position law against that law at a finer
+#: resolution: a ripple of a few cycles per radian with a speed-dependent amplitude is a smooth law of the position
+#: too, and takes what a coarse kernel basis leaves (fresh spec 31089); rule:
+#: ``benchmarks/results/diagnose_finer_basis_ripple_round86_rule.txt``
+FINER_BASIS_RIPPLE_RULE = True
 
 
 def _later_than_first_position_law(model, j) -> tuple:
