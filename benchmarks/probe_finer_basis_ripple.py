@@ -28,27 +28,28 @@ FUNC = "later_position_law_within_finer_basis"
 POSITION_LAWS = ("position_dependent_friction", "position_dependent_load")
 
 
-def names_pair(r: dict) -> bool:
-    """Whether a kept row names a motor-position ripple and a position law among its planted effects, findings or
-    findings set aside (the rows whose diagnosis may have held the pair in a final model)."""
+def names_pair(r: dict, laws=POSITION_LAWS) -> bool:
+    """Whether a kept row names a motor-position ripple and one of ``laws`` (a position law unless given) among its
+    planted effects, findings or findings set aside (the rows whose diagnosis may have held the pair in a final
+    model)."""
     said = [r["truth"], r["got"], " ".join(r.get("set_aside", []))]
     return (any("motor_position_ripple" in x for x in said)
-            and any(law in x for x in said for law in POSITION_LAWS))
+            and any(law in x for x in said for law in laws))
 
 
-def named_keys(family: str = "loop", results_dir=None) -> list:
-    """The spec numbers of ``family``'s kept rows that :func:`names_pair`, sorted."""
+def named_keys(family: str = "loop", results_dir=None, laws=POSITION_LAWS) -> list:
+    """The spec numbers of ``family``'s kept rows that :func:`names_pair` with ``laws``, sorted."""
     import bench_diagnose_testbench as B
     return sorted(k for (f, _, k), (_, r) in B.kept_rows_naming("any", results_dir).items()
-                  if f == family and names_pair(r))
+                  if f == family and names_pair(r, laws))
 
 
-def keys_cli(argv) -> None:
-    """``--keys named [--family=F]``: print :func:`named_keys`."""
+def keys_cli(argv, laws=POSITION_LAWS) -> None:
+    """``--keys named [--family=F]``: print :func:`named_keys` with ``laws``."""
     family, rest = keys_args(argv)
     if rest != ["named"]:
         raise SystemExit("--keys: expected 'named'")
-    print(" ".join(str(k) for k in named_keys(family)))
+    print(" ".join(str(k) for k in named_keys(family, laws=laws)))
 
 
 def _record(got, a, kw):
