@@ -2505,10 +2505,11 @@ def finding_explained_by_linear_response(prep, model, unexplained, alpha, min_ga
     return None
 
 
-#: (eighty-seventh round) a finding beside a constant-amplitude motor-position ripple of its joint is held against the
-#: ripple with the detector's speed-dependent amplitude (:func:`finding_explained_by_ripple_amplitude`); rule:
+#: eighty-seventh round (kept; see ``docs/readme/diagnose_testbench.md``): a finding beside a constant-amplitude
+#: motor-position ripple of its joint is held against the ripple with the detector's speed-dependent amplitude
+#: (:func:`finding_explained_by_ripple_amplitude`); rule:
 #: ``benchmarks/results/diagnose_ripple_amplitude_round87_rule.txt``
-RIPPLE_AMPLITUDE_RULE = False
+RIPPLE_AMPLITUDE_RULE = True
 #: the laws :func:`finding_explained_by_ripple_amplitude` holds against that ripple: the laws of the friction in time,
 #: speed and position (a disturbance periodic in time is not among them: at one speed a ripple is one too, and the
 #: search tells them apart by the speeds, :func:`~drake_est.diagnose.detectors.present_at_all_speeds`)
@@ -3109,8 +3110,8 @@ def _final_checks(prep, out, model, fit, unexplained, alpha, min_gain) -> list:
         # (an elastic gear)
         ("linear_response", lambda: _ext_hit(finding_explained_by_linear_response(prep, model, unexplained, alpha,
                                                                                   min_gain))),
-        # (off unless RIPPLE_AMPLITUDE_RULE) findings beside a constant-amplitude ripple of their joint, against the
-        # ripple with a speed-dependent amplitude
+        # findings beside a constant-amplitude ripple of their joint, against the ripple with a speed-dependent
+        # amplitude (RIPPLE_AMPLITUDE_RULE)
         ("ripple_amplitude", lambda: _ext_hit(finding_explained_by_ripple_amplitude(prep, model, alpha, min_gain))),
         # (off unless POSITION_FRICTION_ACROSS_HALVES) position frictions on a joint whose residual holds structure,
         # from one half of the log to the other where both visit the same positions
