@@ -23,7 +23,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
-from probe_runner import probe_main, run_rule_probe, screen_keys_cli  # noqa: E402
+from probe_held_back_rival import rule_probe_main  # noqa: E402
+from probe_runner import run_rule_probe, screen_keys_cli  # noqa: E402
 from probe_runner import screened_keys as runner_screened_keys  # noqa: E402
 
 RULE = "CHANGE_SUPPORT_RULE"
@@ -58,9 +59,7 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 
 def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not against_off_cli(argv):
-        probe_main(argv, __doc__, keys_cli, run)
+    rule_probe_main(argv, __doc__, keys_cli, run)
 
 
 if __name__ == "__main__":

@@ -21,7 +21,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
-from probe_runner import keys_args, probe_main, run_rule_probe  # noqa: E402
+from probe_held_back_rival import rule_probe_main  # noqa: E402
+from probe_runner import keys_args, run_rule_probe  # noqa: E402
 
 RULE = "FINER_BASIS_RIPPLE_RULE"
 FUNC = "later_position_law_within_finer_basis"
@@ -70,9 +71,7 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 
 def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not against_off_cli(argv):
-        probe_main(argv, __doc__, keys_cli, run)
+    rule_probe_main(argv, __doc__, keys_cli, run)
 
 
 if __name__ == "__main__":

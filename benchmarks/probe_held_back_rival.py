@@ -134,10 +134,17 @@ def against_off_cli(argv) -> bool:
     return True
 
 
-def main(argv=None):
+def rule_probe_main(argv, doc: str, keys_cli, run) -> None:
+    """The command line of a probe that diagnoses the fired logs again with the rule off: ``--against-off`` and
+    ``--against-off-rows`` (:func:`against_off_cli`), else :func:`probe_runner.probe_main` (``argv`` None: the
+    process's arguments)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if not against_off_cli(argv):
-        probe_main(argv, __doc__, functools.partial(keys_cli, seed=71), run)
+        probe_main(argv, doc, keys_cli, run)
+
+
+def main(argv=None):
+    rule_probe_main(argv, __doc__, functools.partial(keys_cli, seed=71), run)
 
 
 if __name__ == "__main__":

@@ -29,7 +29,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from probe_held_back_rival import (AGAINST_OFF_HEADER, against_off, against_off_cli,  # noqa: E402,F401
                                    against_off_row)
 from probe_pair_rescue import keys_cli, row_class  # noqa: E402
-from probe_runner import probe_main, run_rule_probe  # noqa: E402
+from probe_held_back_rival import rule_probe_main  # noqa: E402
+from probe_runner import run_rule_probe  # noqa: E402
 
 
 def _kept(got, a, kw):
@@ -49,9 +50,7 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 
 def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not against_off_cli(argv):
-        probe_main(argv, __doc__, functools.partial(keys_cli, seed=73), run)
+    rule_probe_main(argv, __doc__, functools.partial(keys_cli, seed=73), run)
 
 
 if __name__ == "__main__":

@@ -32,7 +32,8 @@ from probe_held_back_rival import (AGAINST_OFF_HEADER, against_off, against_off_
                                    against_off_row)
 from probe_own_finding_in_check import _kept  # noqa: E402
 from probe_pair_rescue import row_class  # noqa: E402
-from probe_runner import probe_main, run_rule_probe  # noqa: E402
+from probe_held_back_rival import rule_probe_main  # noqa: E402
+from probe_runner import run_rule_probe  # noqa: E402
 
 
 def touchable(row) -> bool:
@@ -54,9 +55,7 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 
 def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not against_off_cli(argv):
-        probe_main(argv, __doc__, keys_cli, run)
+    rule_probe_main(argv, __doc__, keys_cli, run)
 
 
 if __name__ == "__main__":

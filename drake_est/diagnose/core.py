@@ -2351,6 +2351,23 @@ def _structure_text(where) -> str:
     return "; ".join(f"joint {j}: {', '.join(v)}" for j, v in where.items())
 
 
+def _one_way_text(tests, back_what: str, verb: str = "lowers") -> str:
+    """The sentence every one-way check (:func:`_explained_one_way`) gives of its ``(t, own, back)`` tests: the finding's
+    held-out gain given the nuisance, alone, and ``back_what`` (the nuisance, ``verb`` agreeing with it) given the
+    finding."""
+    t, own, back = tests
+    return (f"it lowers the held-out RMSE by {100 * t['rmse_reduction']:.2f} % (p = {t['p_value']:.2g}), not "
+            f"significantly (alone, given the other findings, by {100 * own['rmse_reduction']:.1f} %), while "
+            f"{back_what} given it {verb} it by {100 * back['rmse_reduction']:.2f} % (p = {back['p_value']:.2g})")
+
+
+def _one_way_entry(name: str, tests) -> dict:
+    """The keys every one-way check records of its ``(t, own, back)`` tests against the nuisance ``name``."""
+    t, own, back = tests
+    return {f"explained_by_{name}": True, f"finding_given_{name}": comp._brief(t),
+            f"{name}_given_finding": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"]}
+
+
 def delay_nuisance(prep, j) -> np.ndarray:
     """Columns (at the joint's used rows) of what a delay d between the torque and position samples leaves in the
     residual: M(t - d) - M(t) ~ -d dM/dt, whose inertia and viscous parts are -d J x jerk and -d kv x qdd (the jerk is
@@ -2375,20 +2392,15 @@ def finding_explained_by_delay(prep, model, unexplained, alpha, min_gain):
     got = _latest_explained_one_way(prep, model, [x for x in model.exts if not x.shared and x.joint in joints],
                                     lambda j: delay_nuisance(prep, j), alpha, min_gain)
     if got is not None:
-        e, _, (t, own, back) = got
+        e, _, tests = got
         j = e.joint
         shift = [u for u in unexplained if u.get("variable") == "time_shift_torque_vs_position" and u["joint"] == j]
         return e, {
             "reason": (f"a delay between the torque and position samples of joint {j}, which no vocabulary entry "
                        f"describes, explains it: the final residual shows the torque shifted in time against the "
                        f"position, and given the other findings and the delay's columns (the jerk and the "
-                       f"acceleration, -d dM/dt) it lowers the held-out RMSE by {100 * t['rmse_reduction']:.2f} % "
-                       f"(p = {t['p_value']:.2g}), not significantly (alone, given the other findings, by "
-                       f"{100 * own['rmse_reduction']:.1f} %), while those columns given it lower it by "
-                       f"{100 * back['rmse_reduction']:.2f} % "
-                       f"(p = {back['p_value']:.2g})"),
-            "explained_by_delay": True, "finding_given_delay": comp._brief(t), "delay_given_finding": comp._brief(back),
-            "heldout_rmse_reduction_alone": own["rmse_reduction"],
+                       f"acceleration, -d dM/dt) " + _one_way_text(tests, "those columns", "lower")),
+            **_one_way_entry("delay", tests),
             **({"torque_delay_s": shift[0]["torque_delay_s"]} if shift and "torque_delay_s" in shift[0] else {})}
     return None
 
@@ -2411,17 +2423,12 @@ def finding_explained_by_inertia(prep, model, steps, alpha, min_gain):
         prep, model, [st.ext for st in later],
         lambda j: np.asarray(prep.joints[j].a, float)[prep.joints[j].rows][:, None], alpha, min_gain)
     if got is not None:
-        e, _, (t, own, back) = got
-        j = e.joint
+        e, _, tests = got
         return e, {
-            "reason": (f"an error of the inertia of joint {j} explains it: given the other findings and a free "
-                       f"acceleration column it lowers the held-out RMSE by {100 * t['rmse_reduction']:.2f} % "
-                       f"(p = {t['p_value']:.2g}), not significantly (alone, given the other findings, by "
-                       f"{100 * own['rmse_reduction']:.1f} %), while the acceleration given it lowers it by "
-                       f"{100 * back['rmse_reduction']:.2f} % (p = {back['p_value']:.2g}): in point-to-point moves "
-                       "the acceleration is a function of the position"),
-            "explained_by_inertia": True, "finding_given_inertia": comp._brief(t),
-            "inertia_given_finding": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"]}
+            "reason": (f"an error of the inertia of joint {e.joint} explains it: given the other findings and a free "
+                       f"acceleration column " + _one_way_text(tests, "the acceleration")
+                       + ": in point-to-point moves the acceleration is a function of the position"),
+            **_one_way_entry("inertia", tests)}
     return None
 
 
@@ -2489,18 +2496,13 @@ def finding_explained_by_linear_response(prep, model, unexplained, alpha, min_ga
     laws = [x for x in model.exts if not x.shared and x.joint in joints and x.effect in LINEAR_RESPONSE_EFFECTS]
     got = _latest_explained_one_way(prep, model, laws, lambda j: linear_response_nuisance(prep, j), alpha, min_gain)
     if got is not None:
-        e, N, (t, own, back) = got
-        j = e.joint
+        e, N, tests = got
         return e, {
-            "reason": (f"a linear response of joint {j} to its acceleration, which no vocabulary entry describes (an "
-                       f"elastic gear's resonance adds one), explains it: given the other findings and the "
-                       f"acceleration with {N.shape[1]} lags over {LINEAR_RESPONSE_SPAN_S:g} s it lowers the held-out "
-                       f"RMSE by "
-                       f"{100 * t['rmse_reduction']:.2f} % (p = {t['p_value']:.2g}), not significantly (alone, given "
-                       f"the other findings, by {100 * own['rmse_reduction']:.1f} %), while that response given it "
-                       f"lowers it by {100 * back['rmse_reduction']:.2f} % (p = {back['p_value']:.2g})"),
-            "explained_by_linear_response": True, "finding_given_linear_response": comp._brief(t),
-            "linear_response_given_finding": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"],
+            "reason": (f"a linear response of joint {e.joint} to its acceleration, which no vocabulary entry describes "
+                       f"(an elastic gear's resonance adds one), explains it: given the other findings and the "
+                       f"acceleration with {N.shape[1]} lags over {LINEAR_RESPONSE_SPAN_S:g} s "
+                       + _one_way_text(tests, "that response")),
+            **_one_way_entry("linear_response", tests),
             "linear_response_span_s": LINEAR_RESPONSE_SPAN_S, "linear_response_taps": int(N.shape[1])}
     return None
 
@@ -2555,17 +2557,14 @@ def finding_explained_by_ripple_amplitude(prep, model, alpha, min_gain):
         got = _latest_explained_one_way(prep, model, laws, lambda j, N=N: N, alpha, min_gain)
         if got is None:
             continue
-        e, N, (t, own, back) = got
+        e, N, tests = got
         return e, {
             "reason": (f"the motor-position ripple of joint {e.joint} with an amplitude that follows the speed (a closed "
                        f"loop's response to a ripple changes with its frequency in time) explains it: given the other "
-                       f"findings and that ripple ({N.shape[1]} columns) it lowers the held-out RMSE by "
-                       f"{100 * t['rmse_reduction']:.2f} % (p = {t['p_value']:.2g}), not significantly (alone, given "
-                       f"the other findings, by {100 * own['rmse_reduction']:.1f} %), while the speed-dependent "
-                       f"amplitude given it lowers it by {100 * back['rmse_reduction']:.2f} % (p = "
-                       f"{back['p_value']:.2g}): it took the constant-amplitude ripple's misfit"),
-            "explained_by_ripple_amplitude": True, "finding_given_ripple_amplitude": comp._brief(t),
-            "ripple_amplitude_given_finding": comp._brief(back), "heldout_rmse_reduction_alone": own["rmse_reduction"],
+                       f"findings and that ripple ({N.shape[1]} columns) "
+                       + _one_way_text(tests, "the speed-dependent amplitude")
+                       + ": it took the constant-amplitude ripple's misfit"),
+            **_one_way_entry("ripple_amplitude", tests),
             "ripple_amplitude_basis_functions": int(det.RIPPLE_BASIS)}
     return None
 
