@@ -2477,6 +2477,56 @@ def linear_response_nuisance(prep, j, span=LINEAR_RESPONSE_SPAN_S, taps=LINEAR_R
     return np.column_stack(cols)
 
 
+#: eighty-eighth round (see ``docs/readme/diagnose_testbench.md``): the linear-response check also holds a disturbance
+#: periodic in time that is not stationary over the log (:func:`disturbance_not_stationary`): a pump or a fan keeps
+#: its amplitude and phase, while the part of an elastic gear's response that a sinusoid takes changes with the motion
+#: (fresh spec 31260: a 4.6 Hz resonance at 100 Hz named a 2.57 Hz disturbance whose amplitude over eighths of the log
+#: runs from 0.08 to 0.39 N m, coherence 0.73; rule: ``benchmarks/results/diagnose_disturbance_stationary_round88_rule.txt``)
+LINEAR_RESPONSE_DISTURBANCE_RULE = False
+#: the log is cut into this many pieces of equal duration for :func:`disturbance_stationarity`
+DISTURBANCE_SEGMENTS = 8
+#: a disturbance whose phasor coherence (:func:`disturbance_stationarity`) is below this is not stationary (the planted
+#: disturbances that a free linear response explains one way, sixty-first round: 0.93 to 1.00)
+DISTURBANCE_COHERENCE_MAX = 0.85
+
+
+def disturbance_stationarity(prep, model, e, alpha, min_gain, segments=DISTURBANCE_SEGMENTS) -> dict:
+    """How stationary the time-periodic disturbance ``e`` of the final ``model`` is: its cosine and sine columns fitted
+    with one phasor per piece of the log (``segments`` pieces of equal duration; with the other findings, on the
+    training rows), the ``coherence`` |mean phasor| / mean |phasor| of its first frequency (1 for a sinusoid of fixed
+    amplitude and phase; it falls when the amplitude or phase wanders), the piece ``amplitudes``, and
+    ``heterogeneity``: the held-out partial F-test of the per-piece columns given the model (the wandering beyond the
+    noise)."""
+    j = e.joint
+    jd = prep.joints[j]
+    C = e.cols[j]
+    t = np.asarray(jd.t, float)[jd.rows]
+    edges = np.linspace(t.min(), t.max(), segments + 1)
+    seg = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, segments - 1)
+    S = np.hstack([C * (seg == k)[:, None] for k in range(1, segments)])
+    m0 = Model(prep, [x for x in model.exts if x is not e])
+    het = comp._partial_test(prep, m0, j, C, S, alpha, min_gain, _model_solver(m0, j), coef=True)
+    c = np.asarray(het.pop("coef"), float)
+    nx = m0.design_with_shared(j).shape[1]
+    m = C.shape[1] // 2
+    base = c[nx:nx + C.shape[1]]
+    per = c[nx + C.shape[1]:].reshape(segments - 1, C.shape[1]) + base
+    ph = np.concatenate([[base[0] + 1j * base[m]], per[:, 0] + 1j * per[:, m]])
+    amps = np.abs(ph)
+    coh = float(np.abs(ph.mean()) / amps.mean()) if amps.mean() > 0 else 1.0
+    return {"coherence": coh, "amplitudes": [float(a) for a in amps], "heterogeneity": comp._brief(het),
+            "segments": int(segments)}
+
+
+def disturbance_not_stationary(prep, model, e, alpha, min_gain):
+    """:func:`disturbance_stationarity` of the disturbance ``e`` when its per-piece phasors predict the held-out
+    residual given the model (p < ``alpha``) and its coherence is below :data:`DISTURBANCE_COHERENCE_MAX`, else None."""
+    st = disturbance_stationarity(prep, model, e, alpha, min_gain)
+    if st["heterogeneity"]["p_value"] < alpha and st["coherence"] < DISTURBANCE_COHERENCE_MAX:
+        return st
+    return None
+
+
 def finding_explained_by_linear_response(prep, model, unexplained, alpha, min_gain):
     """A finding of the final ``model`` that a linear response to the acceleration explains, one way: on a joint whose
     final residual depends on the acceleration (an ``acceleration`` entry of
@@ -2493,15 +2543,29 @@ def finding_explained_by_linear_response(prep, model, unexplained, alpha, min_ga
     triggers = LINEAR_RESPONSE_TRIGGERS + (("time_correlation",) if LINEAR_RESPONSE_ON_TIME_CORRELATION else ())
     joints = {int(u["joint"]) for u in unexplained
               if u.get("variable") in triggers and u.get("joint") is not None}
-    laws = [x for x in model.exts if not x.shared and x.joint in joints and x.effect in LINEAR_RESPONSE_EFFECTS]
+    wandering = {}
+    if LINEAR_RESPONSE_DISTURBANCE_RULE:
+        for x in model.exts:
+            if not x.shared and x.joint in joints and x.effect == "time_periodic_disturbance":
+                st = disturbance_not_stationary(prep, model, x, alpha, min_gain)
+                if st is not None:
+                    wandering[id(x)] = st
+    laws = [x for x in model.exts if not x.shared and x.joint in joints
+            and (x.effect in LINEAR_RESPONSE_EFFECTS or id(x) in wandering)]
     got = _latest_explained_one_way(prep, model, laws, lambda j: linear_response_nuisance(prep, j), alpha, min_gain)
     if got is not None:
         e, N, tests = got
-        return e, {
+        st = wandering.get(id(e))
+        extra = {} if st is None else {"disturbance_stationarity": st}
+        why_st = "" if st is None else (
+            f"; the disturbance is not stationary: fitted over {st['segments']} pieces of the log its amplitude runs "
+            f"from {min(st['amplitudes']):.3g} to {max(st['amplitudes']):.3g}, phasor coherence "
+            f"{st['coherence']:.2f} (a pump or a fan keeps its amplitude and phase)")
+        return e, {**extra,
             "reason": (f"a linear response of joint {e.joint} to its acceleration, which no vocabulary entry describes "
                        f"(an elastic gear's resonance adds one), explains it: given the other findings and the "
                        f"acceleration with {N.shape[1]} lags over {LINEAR_RESPONSE_SPAN_S:g} s "
-                       + _one_way_text(tests, "that response")),
+                       + _one_way_text(tests, "that response") + why_st),
             **_one_way_entry("linear_response", tests),
             "linear_response_span_s": LINEAR_RESPONSE_SPAN_S, "linear_response_taps": int(N.shape[1])}
     return None
