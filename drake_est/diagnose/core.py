@@ -2482,11 +2482,11 @@ def linear_response_nuisance(prep, j, span=LINEAR_RESPONSE_SPAN_S, taps=LINEAR_R
 #: its amplitude and phase, while the part of an elastic gear's response that a sinusoid takes changes with the motion
 #: (fresh spec 31260: a 4.6 Hz resonance at 100 Hz named a 2.57 Hz disturbance whose amplitude over eighths of the log
 #: runs from 0.08 to 0.39 N m, coherence 0.73; rule: ``benchmarks/results/diagnose_disturbance_stationary_round88_rule.txt``)
-LINEAR_RESPONSE_DISTURBANCE_RULE = False
+LINEAR_RESPONSE_DISTURBANCE_RULE = True
 #: the log is cut into this many pieces of equal duration for :func:`disturbance_stationarity`
 DISTURBANCE_SEGMENTS = 8
 #: a disturbance whose phasor coherence (:func:`disturbance_stationarity`) is below this is not stationary (the planted
-#: disturbances that a free linear response explains one way, sixty-first round: 0.93 to 1.00)
+#: disturbances that a free linear response explains one way, sixty-first round: 0.94 to 1.00)
 DISTURBANCE_COHERENCE_MAX = 0.85
 
 
