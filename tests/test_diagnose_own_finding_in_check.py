@@ -31,8 +31,22 @@ def test_the_finding_as_accepted_stands_in_for_a_fresh_candidate_only_when_it_pa
 def test_a_load_is_not_set_aside_for_a_fresh_shape_that_predicts_worse(monkeypatch):
     # loop spec 11558 (a load beside Stribeck at 1000 Hz, quantized torque): the load as accepted (16 kernels) lowers the
     # held-out RMSE by 54 % given a drift and a level; the fresh load of the check (32 kernels) raised it by 54 %, the
-    # load was set aside, and the report named a position friction ambiguous with a change, a level and a drift
-    mod, spec, log, _ = closed_loop_case(11558)
+    # load was set aside, and the report named a position friction ambiguous with a change, a level and a drift.
+    # Whether the search reaches that check with the load depends on the CPU's last digits (see
+    # test_diagnose_position_law_as_accepted.py): the log is taken at the first of a few last digits of its position
+    # reference where the diagnosis with neither round's check sets the load aside as not significant
+    def aside(d):
+        return any(s["effect"] == "position_dependent_load" and s["joint"] == 1
+                   and s.get("reason", "").startswith("not significant given the other findings") for s in d["set_aside"])
+
+    monkeypatch.setattr(core, "POSITION_LAW_AS_ACCEPTED_IN_ITS_CHECK", False)
+    for ulps in (0, 1, 2, 3, 5):
+        mod, spec, log, _ = closed_loop_case(11558, reference_ulps=ulps)
+        monkeypatch.setattr(core, "OWN_FINDING_IN_ITS_CHECK", False)
+        if aside(diagnose(log, robot="generic", seed=0, simulate=False).to_dict()):
+            break
+    else:
+        pytest.fail("at none of the last digits tried is the load set aside as not significant without the checks")
     monkeypatch.setattr(core, "OWN_FINDING_IN_ITS_CHECK", True)      # the rule is off by default (not kept)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert mod.judge(spec, d)["wrong"] == [], d["findings"]

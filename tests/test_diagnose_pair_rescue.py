@@ -40,12 +40,13 @@ def test_only_candidates_held_back_by_the_blocks_alone_of_one_joint_are_paired()
 @pytest.mark.long
 def test_an_abrupt_change_and_a_ripple_that_mask_each_other_are_named(monkeypatch):
     # loop spec 19128 (an abrupt change with a motor ripple of 9.708 cycles/rad and its harmonic, 1000 Hz, quantized
-    # torque) with its position reference moved by 1, 2, 3 and 5 ulps, as other CPUs' last digits would: on the
+    # torque) with its position reference moved by 1, 2, 3, 5, 8 and 10 ulps, as other CPUs' last digits would: on the
     # seventieth round's AMD EPYC each alone is held back by the paired block test (p = 0.053 for the change) and the
-    # search names nothing; together they are named every time, the ripple at the generator's frequencies
+    # search names nothing; together they are named every time, the ripple at the generator's frequencies.  On the
+    # eighty-eighth round's Intel Xeon the pair needs the rescue at 8 and 10 ulps only (at 0-7 each is named alone)
     monkeypatch.setattr(core, "PAIR_RESCUE", True)
     kept = []
-    for ulps in (1, 2, 3, 5):
+    for ulps in (1, 2, 3, 5, 8, 10):
         _, _, log, truth = closed_loop_case(19128, reference_ulps=ulps)
         rep = diagnose(log, robot="generic", seed=0, simulate=False)
         assert sorted(rep.effects) == ["abrupt_change", "motor_position_ripple"], ulps
@@ -65,7 +66,7 @@ def test_an_abrupt_change_and_a_ripple_that_mask_each_other_are_named(monkeypatc
         rip = [e for e in rep.result.final_model.exts if e.effect == "motor_position_ripple"][0]
         f0 = truth["motor_position_ripple"]["frequency_per_arm_rad"]
         np.testing.assert_allclose(np.sort(rip.spec["frequencies_per_arm_rad"]), [f0, 2 * f0], rtol=2e-3)
-    assert kept, "no pair was let through at any of the four last digits"
+    assert kept, "no pair was let through at any of the six last digits"
 
 
 @pytest.mark.long
