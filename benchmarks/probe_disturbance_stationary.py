@@ -22,7 +22,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
 from probe_held_back_rival import rule_probe_main  # noqa: E402
-from probe_runner import keys_args, run_rule_probe  # noqa: E402
+from probe_runner import kept_keys, named_keys_cli, run_rule_probe  # noqa: E402
 
 RULE = "LINEAR_RESPONSE_DISTURBANCE_RULE"
 FUNC = "finding_explained_by_linear_response"
@@ -42,17 +42,12 @@ def names_disturbance(r: dict) -> bool:
 
 def named_keys(family: str = "loop", results_dir=None) -> list:
     """The spec numbers of ``family``'s kept rows that :func:`names_disturbance`, sorted."""
-    import bench_diagnose_testbench as B
-    return sorted(k for (f, _, k), (_, r) in B.kept_rows_naming("any", results_dir).items()
-                  if f == family and names_disturbance(r))
+    return kept_keys(family, names_disturbance, results_dir)
 
 
 def keys_cli(argv) -> None:
     """``--keys named [--family=F]``: print :func:`named_keys`."""
-    family, rest = keys_args(argv)
-    if rest != ["named"]:
-        raise SystemExit("--keys: expected 'named'")
-    print(" ".join(str(k) for k in named_keys(family)))
+    named_keys_cli(argv, named_keys)
 
 
 def _record(got, a, kw):

@@ -100,6 +100,21 @@ def keys_args(argv) -> tuple:
     return family, rest
 
 
+def kept_keys(family: str, predicate, results_dir=None) -> list:
+    """The spec numbers of ``family``'s kept rows for which ``predicate(row)`` holds, sorted (a probe's screen of the
+    kept rows it can touch)."""
+    return sorted(k for (f, _, k), (_, r) in B.kept_rows_naming("any", results_dir).items()
+                  if f == family and predicate(r))
+
+
+def named_keys_cli(argv, named_keys) -> None:
+    """``--keys named [--family=F]``: print ``named_keys(family)``."""
+    family, rest = keys_args(argv)
+    if rest != ["named"]:
+        raise SystemExit("--keys: expected 'named'")
+    print(" ".join(str(k) for k in named_keys(family)))
+
+
 def screened_keys(paths, count: str, family: str = "loop") -> list:
     """The spec numbers of ``family`` that the screens ``paths`` (``bench_diagnose_testbench.py --kept-with-count
     COUNT`` JSONs) list as touched, sorted; exits when a file is a screen of another count."""

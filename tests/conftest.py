@@ -66,6 +66,27 @@ def closed_loop_case(k: int, reference_ulps: int = 0):
     return (mod, spec) + tuple(mod.loop_log(spec, **kw))
 
 
+def closed_loop_case_where(k: int, premise, ulps=(0, 1, 2, 3, 5)):
+    """(benchmark module, spec, log, truth, report) of the closed-loop spec ``k`` at the first of ``ulps`` (last digits
+    of its position reference, :func:`closed_loop_case`) whose report (``diagnose(..., simulate=False).to_dict()`` with
+    the switches as they stand) satisfies ``premise``; None when none does.  For a test whose premise, a state of the
+    search a rule acts on, the CPU's last digits decide."""
+    from drake_est.diagnose import diagnose
+    for u in ulps:
+        mod, spec, log, truth = closed_loop_case(k, reference_ulps=u)
+        d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+        if premise(d):
+            return mod, spec, log, truth, d
+    return None
+
+
+def load_set_aside_as_not_significant(d) -> bool:
+    """Whether a report set joint 1's position load aside because a fresh re-detection of it was not significant given
+    the other findings (what the seventy-third and seventy-fourth rounds' checks are about)."""
+    return any(s["effect"] == "position_dependent_load" and s["joint"] == 1
+               and s.get("reason", "").startswith("not significant given the other findings") for s in d["set_aside"])
+
+
 def probe_results(pattern: str):
     """(the text of docs/readme/diagnose_testbench.md, [(path, JSON)] of the probe JSONs
     ``benchmarks/results/PATTERN`` in name order, and ``differences(d)``: a probe JSON's rows, their ``kept_json`` and

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from drake_est.diagnose import core, detectors as det, diagnose
-from conftest import closed_loop_case
+from conftest import closed_loop_case, closed_loop_case_where, load_set_aside_as_not_significant
 
 
 def test_the_finding_as_accepted_stands_in_for_a_fresh_candidate_only_when_it_passes():
@@ -35,18 +35,12 @@ def test_a_load_is_not_set_aside_for_a_fresh_shape_that_predicts_worse(monkeypat
     # Whether the search reaches that check with the load depends on the CPU's last digits (see
     # test_diagnose_position_law_as_accepted.py): the log is taken at the first of a few last digits of its position
     # reference where the diagnosis with neither round's check sets the load aside as not significant
-    def aside(d):
-        return any(s["effect"] == "position_dependent_load" and s["joint"] == 1
-                   and s.get("reason", "").startswith("not significant given the other findings") for s in d["set_aside"])
-
     monkeypatch.setattr(core, "POSITION_LAW_AS_ACCEPTED_IN_ITS_CHECK", False)
-    for ulps in (0, 1, 2, 3, 5):
-        mod, spec, log, _ = closed_loop_case(11558, reference_ulps=ulps)
-        monkeypatch.setattr(core, "OWN_FINDING_IN_ITS_CHECK", False)
-        if aside(diagnose(log, robot="generic", seed=0, simulate=False).to_dict()):
-            break
-    else:
+    monkeypatch.setattr(core, "OWN_FINDING_IN_ITS_CHECK", False)
+    found = closed_loop_case_where(11558, load_set_aside_as_not_significant)
+    if found is None:
         pytest.fail("at none of the last digits tried is the load set aside as not significant without the checks")
+    mod, spec, log, _, _ = found
     monkeypatch.setattr(core, "OWN_FINDING_IN_ITS_CHECK", True)      # the rule is off by default (not kept)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert mod.judge(spec, d)["wrong"] == [], d["findings"]

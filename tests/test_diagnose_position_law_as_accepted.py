@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from drake_est.diagnose import core, detectors as det, diagnose
-from conftest import closed_loop_case
+from conftest import closed_loop_case, closed_loop_case_where, load_set_aside_as_not_significant
 
 
 @pytest.fixture(scope="module")
@@ -56,13 +56,6 @@ def test_a_law_that_fails_the_round_is_not_kept(spec135):
     assert core._position_law_as_accepted(r.prep, m0, f0, r.sigma, noise, core.ALPHA, core.MIN_GAIN, own) is own
 
 
-def _load_set_aside_as_not_significant(d) -> bool:
-    """Whether a report set joint 1's position load aside because a fresh re-detection of it was not significant given
-    the other findings (what the seventy-third and seventy-fourth rounds' checks are about)."""
-    return any(s["effect"] == "position_dependent_load" and s["joint"] == 1
-               and s.get("reason", "").startswith("not significant given the other findings") for s in d["set_aside"])
-
-
 @pytest.mark.long
 def test_loop_case_11558_keeps_its_load(monkeypatch):
     # loop spec 11558 (a load beside Stribeck at 1000 Hz, quantized torque): the load as accepted (16 kernels) lowers the
@@ -72,20 +65,17 @@ def test_loop_case_11558_keeps_its_load(monkeypatch):
     # eighty-eighth round's Intel Xeon the load is set aside for another reason as generated and at 1 ulp of the
     # position reference, and as not significant at 2 and 3 ulps), so the log is taken at the first of a few last
     # digits where the rule-off diagnosis sets the load aside as not significant
-    for ulps in (0, 1, 2, 3, 5):
-        mod, spec, log, _ = closed_loop_case(11558, reference_ulps=ulps)
-        monkeypatch.setattr(core, "POSITION_LAW_AS_ACCEPTED_IN_ITS_CHECK", False)
-        off = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
-        if _load_set_aside_as_not_significant(off):
-            break
-    else:
+    monkeypatch.setattr(core, "POSITION_LAW_AS_ACCEPTED_IN_ITS_CHECK", False)
+    found = closed_loop_case_where(11558, load_set_aside_as_not_significant)
+    if found is None:
         pytest.fail("at none of the last digits tried does the rule-off diagnosis set the load aside as not significant")
+    mod, spec, log, _, off = found
     assert mod.judge(spec, off)["wrong"] != []
     monkeypatch.setattr(core, "POSITION_LAW_AS_ACCEPTED_IN_ITS_CHECK", True)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert mod.judge(spec, d)["wrong"] == [], d["findings"]
     assert "position_dependent_load" in {f["effect"] for f in d["findings"]}
-    assert not _load_set_aside_as_not_significant(d)
+    assert not load_set_aside_as_not_significant(d)
 
 
 def test_the_rule_is_on_and_its_table_is_its_jsons():
