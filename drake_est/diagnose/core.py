@@ -2704,6 +2704,81 @@ def position_friction_weak_on_blocks(prep, steps, unexplained):
     return None
 
 
+#: (eighty-ninth round) a position friction of the final model on a joint whose final residual holds structure must
+#: leave a friction: its Coulomb level at every training position, at the log's extreme speeds, no lower than
+#: -:data:`NEGATIVE_FRICTION_SIGMAS` noise levels (:func:`position_friction_not_dissipative`); rule:
+#: ``benchmarks/results/diagnose_position_friction_dissipation_round89_rule.txt``
+POSITION_FRICTION_DISSIPATION_RULE = False
+
+
+def position_friction_level(prep, model, fit, ext, sigma) -> dict:
+    """The friction torque along the motion that the final ``model`` (fit ``fit``) gives a single-joint
+    ``position_dependent_friction`` ``ext``'s joint at the positions of its training rows, at the log's lowest and
+    highest speed (:func:`~drake_est.diagnose.detectors.extreme_speeds`): the nominal Coulomb level kc, the
+    asymmetric level in the direction of each row (when the model holds one), the position friction w(q) ((9.13):
+    sign(qd) phi(q)^T w), kv times the speed and a Stribeck law's excess at that speed (when the model holds one).
+    Laws in time (an abrupt change, an energy drift) are left out: :func:`negative_friction` checks them on their own.
+    ``{"min_torque", "position", "speed", "direction", "slack", "share_below"}``: the lowest such torque, where and at
+    which speed it falls, the slack (:data:`NEGATIVE_FRICTION_SIGMAS` times the joint's noise level ``sigma[j]``) and
+    the share of training rows whose torque falls below minus the slack; None when the log has no nonzero speed."""
+    j = ext.joint
+    jd = prep.joints[j]
+    cs = model.coef_slices(fit, j)
+    kv, kc = float(cs["nominal"]["kv"]), float(cs["nominal"]["kc"])
+    rows = jd.rows[jd.train]
+    v = jd.v[rows]
+    s = np.sign(v)
+    level = kc + s * (np.asarray(ext.cols[j], float)[jd.train] @ np.asarray(cs[ext.effect], float))
+    for e in model.own(j):
+        if e.effect == "asymmetric_coulomb":
+            level = level + s * (np.asarray(e.cols[j], float)[jd.train] @ np.asarray(cs[e.effect], float))
+    speeds = det.extreme_speeds(jd.v[jd.rows])
+    if speeds is None or level.size == 0:
+        return None
+    strib = next((e for e in model.own(j) if e.effect == "stribeck"), None)
+    slack = NEGATIVE_FRICTION_SIGMAS * float(sigma.get(j, 0.0))
+    best, low = None, np.zeros(level.size, bool)
+    for sp in speeds:
+        f = level + kv * sp
+        if strib is not None:
+            f = f + float(det.stribeck_curve(strib.spec, cs["stribeck"], [sp])[0])
+        low |= f < -slack
+        i = int(np.argmin(f))
+        if best is None or f[i] < best["min_torque"]:
+            best = {"min_torque": float(f[i]), "position": float(jd.q[rows][i]), "speed": float(sp),
+                    "direction": "positive" if v[i] > 0 else "negative"}
+    return {**best, "slack": slack, "share_below": float(np.mean(low))}
+
+
+def position_friction_not_dissipative(prep, model, fit, unexplained, sigma):
+    """With :data:`POSITION_FRICTION_DISSIPATION_RULE`: the latest single-joint ``position_dependent_friction`` of the
+    final ``model``, on a joint with an ``unexplained`` entry, whose friction torque along the motion
+    (:func:`position_friction_level`) falls below minus :data:`NEGATIVE_FRICTION_SIGMAS` noise levels at a training
+    position: a friction that pushes the joint along its motion there does not describe a contact (Sec. 9.1, a
+    friction dissipates), as :func:`negative_friction` asks of a law in time; it took a misfit the model does not hold
+    elsewhere (loop spec 30798: an elastic gear at 1000 Hz, a position friction beside a load whose Coulomb level
+    reaches -5.1 N m at the end of the range, against a noise level of 0.63 N m, while the final residual holds
+    structure in time, position, speed and acceleration).  As ``(ext, why)``, else None."""
+    if not POSITION_FRICTION_DISSIPATION_RULE:
+        return None
+    joints = {int(u["joint"]) for u in unexplained if u.get("joint") is not None}
+    for e in reversed(model.exts):
+        if e.shared or e.effect != "position_dependent_friction" or e.joint not in joints:
+            continue
+        lv = position_friction_level(prep, model, fit, e, sigma)
+        if lv is None or lv["min_torque"] >= -lv["slack"]:
+            continue
+        return e, {
+            "reason": (f"with it the friction of joint {e.joint} along the motion falls to {lv['min_torque']:.3g} N m "
+                       f"at q = {lv['position']:.3g} rad ({lv['direction']} direction, {lv['speed']:.3g} rad/s; "
+                       f"{100 * lv['share_below']:.1f} % of the training rows below -{lv['slack']:.3g} N m, "
+                       f"{NEGATIVE_FRICTION_SIGMAS:g} noise levels), while the final residual of joint {e.joint} still "
+                       f"holds structure: a friction that pushes the joint along its motion is not a friction; it "
+                       f"took a misfit that the model does not hold"),
+            "not_dissipative": True, "friction_level": lv}
+    return None
+
+
 def _joint_candidates(prep, model, fit, j, accepted):
     """:func:`_candidates` of joint ``j`` alone (the other joints' detectors are not run)."""
     cache = {k: [] for k in prep.joints if k != j}
@@ -3183,6 +3258,10 @@ def _final_checks(prep, out, model, fit, unexplained, alpha, min_gain) -> list:
         # (off unless POSITION_FRICTION_STRICT_PAIRED) position frictions on a joint whose residual holds structure,
         # against a stricter level of the paired block test
         ("position_friction_paired", lambda: _step_hit(position_friction_weak_on_blocks(prep, steps, unexplained))),
+        # (off unless POSITION_FRICTION_DISSIPATION_RULE) position frictions on a joint whose residual holds structure,
+        # whose Coulomb level falls below zero at a training position
+        ("position_friction_dissipation", lambda: _ext_hit(position_friction_not_dissipative(
+            prep, model, fit, unexplained, sigma))),
     ]
 
 
