@@ -2708,7 +2708,7 @@ def position_friction_weak_on_blocks(prep, steps, unexplained):
 #: leave a friction: its Coulomb level at every training position, at the log's extreme speeds, no lower than
 #: -:data:`NEGATIVE_FRICTION_SIGMAS` noise levels (:func:`position_friction_not_dissipative`); rule:
 #: ``benchmarks/results/diagnose_position_friction_dissipation_round89_rule.txt``
-POSITION_FRICTION_DISSIPATION_RULE = False
+POSITION_FRICTION_DISSIPATION_RULE = True
 
 
 def position_friction_level(prep, model, fit, ext, sigma) -> dict:

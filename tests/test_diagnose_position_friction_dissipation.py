@@ -1,0 +1,137 @@
+"""The eighty-ninth round: a position friction on a joint whose final residual holds structure is set aside when the
+friction along the motion it leaves falls below zero (``core.POSITION_FRICTION_DISSIPATION_RULE``;
+``benchmarks/results/diagnose_position_friction_dissipation_round89_rule.txt``)."""
+import numpy as np
+import pytest
+
+from drake_est.diagnose import core, detectors as det, diagnose
+
+
+def _capture_final_checks(monkeypatch):
+    """Record the arguments of every call of the dissipation check (the final model's state) and what it returned."""
+    calls = []
+    original = core.position_friction_not_dissipative
+
+    def wrapped(*a):
+        got = original(*a)
+        calls.append((a, got))
+        return got
+    monkeypatch.setattr(core, "position_friction_not_dissipative", wrapped)
+    return calls
+
+
+@pytest.fixture(scope="module")
+def design_case():
+    """Spec 30798 (an elastic gear at 1000 Hz) diagnosed with the switch off and on: (module, spec, truth, off, on,
+    the check's calls with the switch on)."""
+    from conftest import closed_loop_case
+    mod, spec, log, truth = closed_loop_case(30798)
+    mp = pytest.MonkeyPatch()
+    try:
+        mp.setattr(core, "POSITION_FRICTION_DISSIPATION_RULE", False)
+        off = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+        mp.setattr(core, "POSITION_FRICTION_DISSIPATION_RULE", True)
+        calls = _capture_final_checks(mp)
+        on = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    finally:
+        mp.undo()
+    return mod, spec, truth, off, on, calls
+
+
+def test_spec_30798_ends_unexplained_with_the_rule_on(design_case):
+    """Off: a position load and a position friction for an elastic gear (wrong names). On: the friction is set aside
+    as leaving a friction below zero, and the log ends ``unexplained`` with nothing named."""
+    mod, spec, truth, off, on, _ = design_case
+    assert truth["planted"] == ["compliance"]
+    assert sorted(f["effect"] for f in off["findings"]) == ["position_dependent_friction", "position_dependent_load"]
+    assert mod.judge(spec, off)["wrong"]
+    assert on["findings"] == [] and on["unexplained"]
+    j = mod.judge(spec, on)
+    assert j["correct"] and not j["wrong"]
+    aside = [x for x in on["set_aside"] if x.get("not_dissipative")]
+    assert [x["effect"] for x in aside] == ["position_dependent_friction"]
+    lv = aside[0]["friction_level"]
+    assert lv["min_torque"] < -lv["slack"] < 0 and 0 < lv["share_below"] < 1
+    assert lv["direction"] in ("positive", "negative") and lv["speed"] > 0
+    assert "is not a friction" in aside[0]["reason"] and "holds structure" in aside[0]["reason"]
+
+
+def test_the_level_is_the_models_friction_along_the_motion(design_case):
+    """``position_friction_level`` recomputed by hand from the fitted coefficients of the final model it fired on:
+    kc + sign(qd) * (position friction columns @ w), plus kv at the log's lowest speed, the least over the training
+    rows; and the slack is two noise levels of the joint."""
+    _, _, _, _, _, calls = design_case
+    fired = [(a, got) for a, got in calls if got is not None]
+    assert len(fired) == 1
+    (prep, model, fit, unexplained, sigma), (e, why) = fired[0]
+    j = e.joint
+    jd = prep.joints[j]
+    cs = model.coef_slices(fit, j)
+    assert "asymmetric_coulomb" not in cs and "stribeck" not in cs
+    v = jd.v[jd.rows][jd.train]
+    level = float(cs["nominal"]["kc"]) + np.sign(v) * (np.asarray(e.cols[j])[jd.train] @ cs[e.effect])
+    vmin = det.extreme_speeds(jd.v[jd.rows])[0]
+    expect = level + float(cs["nominal"]["kv"]) * vmin
+    lv = core.position_friction_level(prep, model, fit, e, sigma)
+    assert lv == why["friction_level"]
+    assert lv["min_torque"] == pytest.approx(float(expect.min()), rel=1e-9)
+    assert lv["speed"] == pytest.approx(vmin)
+    assert lv["slack"] == pytest.approx(core.NEGATIVE_FRICTION_SIGMAS * sigma[j])
+    assert lv["share_below"] == pytest.approx(float(np.mean(expect < -lv["slack"])))
+
+
+def test_a_planted_position_friction_leaves_a_friction(monkeypatch):
+    """Spec 2055 (a position friction beside a disturbance in time, 1000 Hz), a kept row of the probe with a position
+    friction named and an ``unexplained`` entry: the friction it leaves stays above zero everywhere, the rule does
+    not fire, and both planted effects are still named."""
+    from conftest import closed_loop_case
+    mod, spec, log, truth = closed_loop_case(2055)
+    calls = _capture_final_checks(monkeypatch)
+    monkeypatch.setattr(core, "POSITION_FRICTION_DISSIPATION_RULE", True)
+    rep = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    assert "position_dependent_friction" in truth["planted"] and mod.judge(spec, rep)["correct"]
+    assert calls and all(got is None for _, got in calls)
+    prep, model, fit, unexplained, sigma = calls[-1][0]
+    e = next(x for x in model.exts if x.effect == "position_dependent_friction")
+    assert core.position_friction_level(prep, model, fit, e, sigma)["min_torque"] > 0
+
+
+def test_off_the_check_never_computes_the_level(monkeypatch, design_case):
+    """With the switch off the check returns None without looking at a level."""
+    def boom(*a, **k):
+        raise AssertionError("level computed with the rule off")
+    monkeypatch.setattr(core, "POSITION_FRICTION_DISSIPATION_RULE", False)
+    monkeypatch.setattr(core, "position_friction_level", boom)
+    _, _, _, _, _, calls = design_case
+    (prep, model, fit, unexplained, sigma), _ = next((a, g) for a, g in calls if g is not None)
+    assert core.position_friction_not_dissipative(prep, model, fit, unexplained, sigma) is None
+
+
+def test_kept_and_its_table_is_its_jsons():
+    """Kept: the switch is on; the docs' table holds each probe JSON's row as --against-off-rows prints it; lanes a and
+    b are the 565 closed-loop rows of the screen (alternate keys), lane c the one open-loop row, lane d the 4 rows of
+    the fresh blocks 33000-33199 run after the screen was drawn; every row the screen lists now was examined (30798,
+    folded, no longer names a position friction); the rule fired in
+    the design log only, which lost its wrong name (its rule-on row is now its kept row), and nothing was lost; the
+    synth row is the same on and off."""
+    import json
+    from pathlib import Path
+    from conftest import bench_module, probe_lanes, probe_results
+    assert core.POSITION_FRICTION_DISSIPATION_RULE is True
+    probe = bench_module("probe_position_friction_dissipation")
+    doc, files, examined, s = probe_lanes(probe, "diagnose_position_friction_dissipation_round89_lane_*.json",
+                                          lanes="abcd")
+    assert [len(d["keys_examined"]) for _, d in files] == [283, 282, 1, 4]
+    assert examined["loop"] == set(probe.touchable_keys("loop")) | {30798}
+    assert examined["testbench"] == set(probe.touchable_keys("testbench")) == {115}
+    assert [t["k"] for f, d in files for t in d["touched"]] == [30798]
+    assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == s["outright_lost"] == []
+    assert s["wrong_lost"] == [30798] and s["missed_on"] <= s["missed_off"]
+    _, _, differences = probe_results("diagnose_position_friction_dissipation_round89_lane_*.json")
+    for f, d in files:
+        assert differences(d) == [], f.name          # the rule-on rows are the kept rows (30798 folded)
+    root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+    syn = json.loads((root / "diagnose_position_friction_dissipation_round89_synth_1.json").read_text())
+    assert syn["on"]["got"] == syn["off"]["got"] == "position_dependent_friction" and syn["on"]["correct"]
+    assert "It fired in one log of 570" in " ".join(doc.split())
+
