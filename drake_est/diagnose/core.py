@@ -1421,7 +1421,43 @@ def _position_law_as_accepted(prep, m0, f0, sigma, e, alpha, min_gain, own):
     return _own_finding_given_others(prep, m0, f0, sigma, e, alpha, min_gain, own)
 
 
-def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
+#: (ninetieth round) a finding is not set aside for a rival closed on its joint earlier in the diagnosis (set aside
+#: itself): that rival cannot be named, so the check would close both (:func:`finding_to_set_aside`, ``closed``)
+CLOSED_RIVAL_RULE = False
+
+
+def _closed_key(ext):
+    """The (effect, joint) key of a candidate among run_diagnosis' closed findings (joint None for a shared one)."""
+    return ext.effect, (None if ext.shared else int(ext.joint))
+
+
+def closed_rival(e, rival, paired_p, shut) -> dict | None:
+    """With :data:`CLOSED_RIVAL_RULE` (``shut`` is empty without it): the set-aside entry of ``rival`` when it is
+    closed on its joint (in ``shut``, run_diagnosis' closed findings by :func:`_closed_key`) and would set the finding
+    ``e`` aside in :func:`finding_to_set_aside` (it beats ``e`` on the paired held-out blocks, ``paired_p`` below
+    :data:`PAIRED_ALPHA`, or is not separated from it with fewer parameters); None otherwise."""
+    c = shut.get(_closed_key(rival))
+    if c is None or not (paired_p < PAIRED_ALPHA or rival.n_params < e.n_params):
+        return None
+    return c
+
+
+def _closed_rival_mark(e, own, rival, rival_tst, entry) -> dict:
+    """Competition fields of a finding ``e`` (its test ``own``) whose higher-scoring ``rival`` (its test
+    ``rival_tst``) was set aside earlier in the diagnosis for ``e``'s effect (``entry``: that set-aside): each explains
+    the joint's residual better given the findings of its own model, so the log does not decide between them."""
+    return {"ambiguous": True, "ambiguous_with": [rival.effect], "runner_up": rival.effect,
+            "runner_up_joint": int(e.joint), "runner_up_score": float(rival_tst["score"]),
+            "runner_up_significant": True, "margin": float(own["score"] - rival_tst["score"]),
+            "closed_rival": {"effect": rival.effect, "set_aside_for": e.effect,
+                             "paired_p_value_when_set_aside": entry.get("paired_p_value")},
+            "reason": (f"{rival.effect} scores more given the other findings, but it was set aside earlier for "
+                       f"{e.effect} (paired p = {entry.get('paired_p_value', float('nan')):.2g}): each explains the "
+                       "joint's residual better given the findings of its own model, so the log does not decide "
+                       "between the two; this one is kept")}
+
+
+def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None, closed=None):
     """Each accepted finding must still be the best explanation of its joint's residual when all the *other*
     findings are in the model (the forward search accepts greedily: a first finding that only stood in for
     effects found later, e.g. a position load fitted to an asymmetric Coulomb level and a Stribeck hump that
@@ -1433,7 +1469,16 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
     the one of the round that accepted it, as the best significant candidate.  A rival must also predict the
     held-out blocks better beyond chance (:func:`~drake_est.diagnose.competition.paired_block_test` at
     :data:`PAIRED_ALPHA`); when it does not, the finding stays and ``ambiguous[(effect, joint)]`` receives the
-    competition fields that report it as ambiguous between the two."""
+    competition fields that report it as ambiguous between the two.  ``closed``: the findings set aside so far in the
+    diagnosis (run_diagnosis' entries, each with ``effect``, ``joint`` and, when a rival put it aside, ``better``);
+    with :data:`CLOSED_RIVAL_RULE` a rival closed on the finding's joint does not set the finding aside (it cannot be
+    named: loop spec 33077, an asymmetric level beside Stribeck, lost the load to the level and then the level to the
+    closed load, and an abrupt change and a position friction took their place); the best rival that is not closed
+    is judged instead, and when the closed one was set aside for this finding's effect the finding is reported
+    ambiguous with it (:func:`_closed_rival_mark`)."""
+    shut = {}
+    if CLOSED_RIVAL_RULE and closed:
+        shut = {(c["effect"], c.get("joint")): c for c in closed}
     for e in list(model.exts)[:-1]:
         if e.shared:
             continue
@@ -1455,13 +1500,28 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None):
                   and r[1]["score"] > own[0][1]["score"] + AMBIGUITY_MARGIN]
         if ambiguous is not None:
             _mark_tied_rivals(ambiguous, e, own[0][1], results)
-        if rivals:
+        while rivals:
             best, _ = _best_surviving(prep, m0, f0, rivals, alpha, min_gain)
+            paired = info = None
             if best is not None:
                 paired = comp.paired_block_test(prep, own[0][2], best[2], [e.joint])
                 info = {"better": best[0].effect, "score": float(own[0][1]["score"]),
                         "better_score": float(best[1]["score"]), "paired_statistic": paired["statistic"],
                         "paired_p_value": paired["p_value"], "paired_groups": paired["groups"]}
+                c = closed_rival(e, best[0], paired["p_value"], shut)
+                if c is not None:
+                    # the rival would set the finding aside, but it is closed: it cannot be named
+                    if c.get("better") == e.effect and ambiguous is not None:
+                        mark = _closed_rival_mark(e, own[0][1], best[0], best[1], c)
+                        had = [x for x in ambiguous.get((e.effect, e.joint), {}).get("ambiguous_with", [])
+                               if x != best[0].effect]
+                        mark["ambiguous_with"] += had
+                        ambiguous[(e.effect, e.joint)] = mark
+                    rivals = [r for r in rivals if _closed_key(r[0]) not in shut]
+                    continue
+            break
+        if rivals:
+            if best is not None:
                 if paired["p_value"] < PAIRED_ALPHA:
                     return e.effect, e.joint, {"reason": f"{best[0].effect} explains the joint's residual better "
                                                          "given the other findings", **info}
@@ -3356,7 +3416,7 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
             if not [e for e in model.exts if not e.shared]:
                 checked = True
                 break
-            bad = finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous)
+            bad = finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous, closed=set_aside)
             if bad is None:
                 checked = True
                 break
