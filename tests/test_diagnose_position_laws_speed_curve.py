@@ -121,7 +121,9 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
         examined += s["examined"]
         # rows folded again by later rounds: 13530 by the seventy-fourth (a load kept in its check: a second ambiguous
         # finding, still correct), 8965 by the seventy-fifth (J kept positive: Stribeck named outright)
-        assert [x["k"] for x in differences(d)] == ([8965, 13530] if f.name.endswith("_lane_a.json") else []), f.name
+        # (7975's kept row was refolded by the ninetieth round)
+        assert [x["k"] for x in differences(d)] == ([8965, 13530] if f.name.endswith("_lane_a.json") else
+                                                     [7975] if f.name.endswith("_lane_b.json") else []), f.name
     assert sorted(lost) == [19899, 25506]
     assert outright == [26893]
     assert f"all {examined} such kept rows" in " ".join(doc.split())

@@ -1423,7 +1423,7 @@ def _position_law_as_accepted(prep, m0, f0, sigma, e, alpha, min_gain, own):
 
 #: (ninetieth round) a finding is not set aside for a rival closed on its joint earlier in the diagnosis (set aside
 #: itself): that rival cannot be named, so the check would close both (:func:`finding_to_set_aside`, ``closed``)
-CLOSED_RIVAL_RULE = False
+CLOSED_RIVAL_RULE = True
 
 
 def _closed_key(ext):
