@@ -80,6 +80,26 @@ def closed_loop_case_where(k: int, premise, ulps=(0, 1, 2, 3, 5)):
     return None
 
 
+def closed_loop_off_and_on(k: int, switch: str, while_on=None):
+    """(benchmark module, spec, truth, rule-off report, rule-on report, what ``while_on`` returned) of the closed-loop
+    spec ``k`` diagnosed (``diagnose(..., simulate=False).to_dict()``) with ``core.<switch>`` False, then True;
+    ``while_on(mp)`` (None: nothing) runs with the MonkeyPatch before the rule-on diagnosis, e.g. to wrap the function
+    where the rule acts.  Everything patched is restored afterwards.  For a module-scoped design-log fixture."""
+    import pytest
+    from drake_est.diagnose import core, diagnose
+    mod, spec, log, truth = closed_loop_case(k)
+    mp = pytest.MonkeyPatch()
+    try:
+        mp.setattr(core, switch, False)
+        off = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+        mp.setattr(core, switch, True)
+        extra = while_on(mp) if while_on is not None else None
+        on = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
+    finally:
+        mp.undo()
+    return mod, spec, truth, off, on, extra
+
+
 def load_set_aside_as_not_significant(d) -> bool:
     """Whether a report set joint 1's position load aside because a fresh re-detection of it was not significant given
     the other findings (what the seventy-third and seventy-fourth rounds' checks are about)."""

@@ -4,7 +4,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from drake_est.diagnose import core, diagnose
+from drake_est.diagnose import core
 
 
 def _ext(effect, n_params, joint=1, shared=False):
@@ -43,24 +43,15 @@ def test_the_mark_names_the_closed_rival():
 @pytest.fixture(scope="module")
 def design_case():
     """Fresh spec 33077 (an asymmetric level beside Stribeck, 100 Hz, quantized torque) diagnosed with the switch off
-    and on: (module, spec, truth, off, on)."""
-    from conftest import closed_loop_case
-    mod, spec, log, truth = closed_loop_case(33077)
-    mp = pytest.MonkeyPatch()
-    try:
-        mp.setattr(core, "CLOSED_RIVAL_RULE", False)
-        off = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
-        mp.setattr(core, "CLOSED_RIVAL_RULE", True)
-        on = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
-    finally:
-        mp.undo()
-    return mod, spec, truth, off, on
+    and on: (module, spec, truth, off, on, None)."""
+    from conftest import closed_loop_off_and_on
+    return closed_loop_off_and_on(33077, "CLOSED_RIVAL_RULE")
 
 
 def test_spec_33077_keeps_the_level_ambiguous_with_the_closed_load(design_case):
     """Off: the load set aside for the level, then the level for the closed load, and an abrupt change named (a wrong
     name). On: the level stays, reported ambiguous with the load it had put aside, beside the Stribeck law."""
-    mod, spec, truth, off, on = design_case
+    mod, spec, truth, off, on, _ = design_case
     assert sorted(truth["planted"]) == ["asymmetric_coulomb", "stribeck"]
     assert [x["effect"] for x in off["set_aside"]][:2] == ["position_dependent_load", "asymmetric_coulomb"]
     assert off["set_aside"][1]["better"] == "position_dependent_load"

@@ -24,18 +24,8 @@ def _capture_final_checks(monkeypatch):
 def design_case():
     """Spec 30798 (an elastic gear at 1000 Hz) diagnosed with the switch off and on: (module, spec, truth, off, on,
     the check's calls with the switch on)."""
-    from conftest import closed_loop_case
-    mod, spec, log, truth = closed_loop_case(30798)
-    mp = pytest.MonkeyPatch()
-    try:
-        mp.setattr(core, "POSITION_FRICTION_DISSIPATION_RULE", False)
-        off = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
-        mp.setattr(core, "POSITION_FRICTION_DISSIPATION_RULE", True)
-        calls = _capture_final_checks(mp)
-        on = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
-    finally:
-        mp.undo()
-    return mod, spec, truth, off, on, calls
+    from conftest import closed_loop_off_and_on
+    return closed_loop_off_and_on(30798, "POSITION_FRICTION_DISSIPATION_RULE", _capture_final_checks)
 
 
 def test_spec_30798_ends_unexplained_with_the_rule_on(design_case):

@@ -1520,27 +1520,26 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None, cl
                     rivals = [r for r in rivals if _closed_key(r[0]) not in shut]
                     continue
             break
-        if rivals:
-            if best is not None:
-                if paired["p_value"] < PAIRED_ALPHA:
-                    return e.effect, e.joint, {"reason": f"{best[0].effect} explains the joint's residual better "
-                                                         "given the other findings", **info}
-                # the finding beat the rival in its round, the rival scores higher given the later findings, and the
-                # held-out blocks do not separate them: the order decided, not the data.  Reported as ambiguous
-                # between the two; the model keeps the one with fewer parameters (parsimony)
-                if best[0].n_params < e.n_params:
-                    return e.effect, e.joint, {
-                        "reason": f"{best[0].effect} explains the joint's residual as well given the other findings "
-                                  f"(not separated on the held-out blocks, paired p = {paired['p_value']:.2g}) with "
-                                  f"fewer parameters ({best[0].n_params} < {e.n_params})",
-                        "not_separated": True, **info}
-                if ambiguous is not None:
-                    tied = ambiguous.get((e.effect, e.joint), {}).get("ambiguous_with", [])
-                    ambiguous[(e.effect, e.joint)] = _not_separated(best[0].effect, e.joint, own[0][1]["score"],
-                                                                    best[1]["score"], paired["p_value"])
-                    if tied:
-                        ambiguous[(e.effect, e.joint)]["ambiguous_with"] = [best[0].effect] + [
-                            x for x in tied if x != best[0].effect]
+        if rivals and best is not None:
+            if paired["p_value"] < PAIRED_ALPHA:
+                return e.effect, e.joint, {"reason": f"{best[0].effect} explains the joint's residual better "
+                                                     "given the other findings", **info}
+            # the finding beat the rival in its round, the rival scores higher given the later findings, and the
+            # held-out blocks do not separate them: the order decided, not the data.  Reported as ambiguous
+            # between the two; the model keeps the one with fewer parameters (parsimony)
+            if best[0].n_params < e.n_params:
+                return e.effect, e.joint, {
+                    "reason": f"{best[0].effect} explains the joint's residual as well given the other findings "
+                              f"(not separated on the held-out blocks, paired p = {paired['p_value']:.2g}) with "
+                              f"fewer parameters ({best[0].n_params} < {e.n_params})",
+                    "not_separated": True, **info}
+            if ambiguous is not None:
+                tied = ambiguous.get((e.effect, e.joint), {}).get("ambiguous_with", [])
+                ambiguous[(e.effect, e.joint)] = _not_separated(best[0].effect, e.joint, own[0][1]["score"],
+                                                                best[1]["score"], paired["p_value"])
+                if tied:
+                    ambiguous[(e.effect, e.joint)]["ambiguous_with"] = [best[0].effect] + [
+                        x for x in tied if x != best[0].effect]
     return None
 
 
@@ -2700,6 +2699,18 @@ def finding_explained_by_ripple_amplitude(prep, model, alpha, min_gain):
 POSITION_FRICTION_ACROSS_HALVES = False
 
 
+def _position_frictions_with_structure(items, unexplained, ext=lambda x: x):
+    """The ``items`` (extensions, or steps with ``ext=lambda st: st.ext``), latest first, whose extension is a
+    single-joint ``position_dependent_friction`` on a joint with an ``unexplained`` entry: the findings the final
+    position-friction checks hold (:func:`position_friction_not_held_across_halves`,
+    :func:`position_friction_weak_on_blocks`, :func:`position_friction_not_dissipative`)."""
+    joints = {int(u["joint"]) for u in unexplained if u.get("joint") is not None}
+    for x in reversed(items):
+        e = ext(x)
+        if not e.shared and e.effect == "position_dependent_friction" and e.joint in joints:
+            yield x
+
+
 def position_friction_not_held_across_halves(prep, model, unexplained, alpha, min_gain):
     """With :data:`POSITION_FRICTION_ACROSS_HALVES`: a single-joint ``position_dependent_friction`` of the final
     ``model`` on a joint with an ``unexplained`` entry that predicts neither half of the log from the other at the
@@ -2710,10 +2721,7 @@ def position_friction_not_held_across_halves(prep, model, unexplained, alpha, mi
     -97 % and -9 % from one half to the other).  The latest such finding as ``(ext, why)``, else None."""
     if not POSITION_FRICTION_ACROSS_HALVES:
         return None
-    joints = {int(u["joint"]) for u in unexplained if u.get("joint") is not None}
-    for e in reversed(model.exts):
-        if e.shared or e.effect != "position_dependent_friction" or e.joint not in joints:
-            continue
+    for e in _position_frictions_with_structure(model.exts, unexplained):
         m0 = Model(prep, [x for x in model.exts if x is not e])
         solve = _model_solver(m0, e.joint)
         h = comp.position_law_across_halves(prep, m0, e, alpha, min_gain, solve=solve)
@@ -2748,11 +2756,8 @@ def position_friction_weak_on_blocks(prep, steps, unexplained):
     ``(step, why)``, else None."""
     if not POSITION_FRICTION_STRICT_PAIRED:
         return None
-    joints = {int(u["joint"]) for u in unexplained if u.get("joint") is not None}
-    for st in reversed(steps):
+    for st in _position_frictions_with_structure(steps, unexplained, ext=lambda st: st.ext):
         e = st.ext
-        if e.shared or e.effect != "position_dependent_friction" or e.joint not in joints:
-            continue
         p = st.test.get("paired_p_value")
         if p is None or p < STRICT_PAIRED_ALPHA:
             continue
@@ -2771,7 +2776,7 @@ def position_friction_weak_on_blocks(prep, steps, unexplained):
 POSITION_FRICTION_DISSIPATION_RULE = True
 
 
-def position_friction_level(prep, model, fit, ext, sigma) -> dict:
+def position_friction_level(prep, model, fit, ext, sigma) -> dict | None:
     """The friction torque along the motion that the final ``model`` (fit ``fit``) gives a single-joint
     ``position_dependent_friction`` ``ext``'s joint at the positions of its training rows, at the log's lowest and
     highest speed (:func:`~drake_est.diagnose.detectors.extreme_speeds`): the nominal Coulomb level kc, the
@@ -2821,10 +2826,7 @@ def position_friction_not_dissipative(prep, model, fit, unexplained, sigma):
     structure in time, position, speed and acceleration).  As ``(ext, why)``, else None."""
     if not POSITION_FRICTION_DISSIPATION_RULE:
         return None
-    joints = {int(u["joint"]) for u in unexplained if u.get("joint") is not None}
-    for e in reversed(model.exts):
-        if e.shared or e.effect != "position_dependent_friction" or e.joint not in joints:
-            continue
+    for e in _position_frictions_with_structure(model.exts, unexplained):
         lv = position_friction_level(prep, model, fit, e, sigma)
         if lv is None or lv["min_torque"] >= -lv["slack"]:
             continue
