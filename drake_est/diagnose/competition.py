@@ -604,7 +604,7 @@ def reversal_columns(jd):
     return np.column_stack(cols)
 
 
-def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, without=(), chosen=None):
+def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, without=(), chosen=None, rows=None):
     """Columns (at the joint's used rows) of a free function of the state of joint ``j`` that predicts its held-out
     residual: the blocks of :func:`state_blocks` joined one at a time, each time the one that lowers the held-out
     error of the model most (fitted on the training rows), while one does.  Blocks that overlap (the kernels times
@@ -613,7 +613,9 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, wit
     than the model makes any candidate look good given it (loop spec 5775: all blocks at once raised the held-out
     RMSE by 62 %); the forward choice keeps the nuisance a predictor, as :func:`periodic_nuisance` does.  No columns
     when no block lowers the held-out error (the candidate is then tested given the model alone).  ``without``: the
-    names of blocks left out; ``chosen``: a list the names of the blocks joined are appended to, in their order."""
+    names of blocks left out; ``chosen``: a list the names of the blocks joined are appended to, in their order;
+    ``rows`` = (fit rows, compared rows), boolean over the used rows, instead of the joint's training and held-out
+    rows (as in :func:`_partial_test`)."""
     solve = solve or _lstsq
     from drake_est.diagnose.nominal import nominal_names
     n0 = len(nominal_names(prep.robot_kind))
@@ -624,11 +626,12 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, wit
         raise ValueError(f"state_nuisance: no state block named {', '.join(unknown)} "
                          f"(the blocks: {', '.join(STATE_BLOCK_NAMES)})")
     blocks = {k: B for k, B in state_blocks(prep, j, kernels).items() if k not in without}
-    best, _ = _fit_rss(X, jd.y, jd.train, jd.val, n0, solve)
+    train, val = (jd.train, jd.val) if rows is None else rows
+    best, _ = _fit_rss(X, jd.y, train, val, n0, solve)
     cols = []
     while blocks:
         # the blocks' trials at once (parallel.pmap), in the blocks' order
-        trial = dict(zip(blocks, pmap(lambda B: _fit_rss(np.hstack([X] + cols + [B]), jd.y, jd.train, jd.val, n0,
+        trial = dict(zip(blocks, pmap(lambda B: _fit_rss(np.hstack([X] + cols + [B]), jd.y, train, val, n0,
                                                          solve)[0], list(blocks.values()))))
         k = min(trial, key=trial.get)
         if not trial[k] < best:

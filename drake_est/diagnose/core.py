@@ -28,8 +28,8 @@ import drake_est.diagnose.detectors as det
 from drake_est.diagnose.quantization import torque_step  # noqa: F401  (re-exported)
 from drake_est.diagnose.multilog import energy_fn, log_ids, per_log_offsets
 from drake_est.diagnose.parallel import diagnosis_threads, pmap
-from drake_est.diagnose.nominal import (block_index, joint_tau_step, nominal_columns, nominal_names, prepare,
-                                        screen_outliers)
+from drake_est.diagnose.nominal import (EXTRAPOLATION_FACTOR, block_index, faster_than_training, joint_tau_step,
+                                        nominal_columns, nominal_names, prepare, screen_outliers)
 from drake_est.metrics import metrics_table
 from drake_est.regression import ridge_solve, scaled_cholesky_solve
 
@@ -1748,7 +1748,7 @@ def disturbance_explained_by_state(prep, model, alpha, min_gain):
     return None
 
 
-def _state_explains(prep, m0, j, C, alpha, min_gain, without=()):
+def _state_explains(prep, m0, j, C, alpha, min_gain, without=(), rows=None):
     """Whether a free function of joint ``j``'s state (:func:`~drake_est.diagnose.competition.state_nuisance`, its
     blocks chosen forward on the model ``m0`` without the finding, ``without``: blocks left out) explains the finding
     whose columns are ``C``: given the function they do not predict the held-out residual (partial held-out F-test at
@@ -1758,31 +1758,60 @@ def _state_explains(prep, m0, j, C, alpha, min_gain, without=()):
     finding's part there, not the reverse (loop spec 3037: a planted 0.5 Hz disturbance at 10 Hz, 67 % lower held-out
     RMSE alone, 15 % higher given the state's 14 columns, which were chosen to predict the residual with the
     disturbance still in it).  ``(N, test given the function, own RMSE reduction, the function's)``, else None.  The
-    checks of :func:`disturbance_explained_by_state` and :func:`time_law_explained_by_state`."""
-    got = _state_tests(prep, m0, j, C, alpha, min_gain, without=without)
+    checks of :func:`disturbance_explained_by_state` and :func:`time_law_explained_by_state`.  ``rows``: (fit rows,
+    compared rows) instead of the joint's training and held-out rows (:func:`_state_tests`)."""
+    got = _state_tests(prep, m0, j, C, alpha, min_gain, without=without, rows=rows)
     if got is None or got[3] < got[2]:
         return None
     return got
 
 
-def _state_tests(prep, m0, j, C, alpha, min_gain, without=(), chosen=None):
+def _state_tests(prep, m0, j, C, alpha, min_gain, without=(), chosen=None, rows=None):
     """The finding with columns ``C`` against a free function of joint ``j``'s state
     (:func:`~drake_est.diagnose.competition.state_nuisance` on the model ``m0`` without it, ``without``: blocks left
     out, ``chosen``: a list the joined blocks' names are appended to): None when no block joins the function (none
     lowers the held-out error: nothing of the state to explain ``C``) or ``C`` predicts the held-out residual given the
     function (partial held-out F-test at ``alpha``, gain ``min_gain``), else ``(N, that test, C's own RMSE reduction,
-    the function's)`` (:func:`_state_explains`, :func:`mark_disturbance_confounded_with_state`)."""
+    the function's)`` (:func:`_state_explains`, :func:`mark_disturbance_confounded_with_state`).  ``rows`` = (fit
+    rows, compared rows), boolean over the joint's used rows, instead of its training and held-out rows (the blocks
+    chosen and every test made on them)."""
     solve = _model_solver(m0, j)
-    N = comp.state_nuisance(prep, m0, j, solve=solve, without=without, chosen=chosen)
+    N = comp.state_nuisance(prep, m0, j, solve=solve, without=without, chosen=chosen, rows=rows)
     if not N.shape[1]:
         return None
-    t = comp._partial_test(prep, m0, j, N, C, alpha, min_gain, solve)
+    t = comp._partial_test(prep, m0, j, N, C, alpha, min_gain, solve, rows=rows)
     if t["significant"]:
         return None
     zero = np.zeros((C.shape[0], 0))
-    own = comp._partial_test(prep, m0, j, zero, C, alpha, min_gain, solve)["rmse_reduction"]
-    state = comp._partial_test(prep, m0, j, zero, N, alpha, min_gain, solve)["rmse_reduction"]
+    own = comp._partial_test(prep, m0, j, zero, C, alpha, min_gain, solve, rows=rows)["rmse_reduction"]
+    state = comp._partial_test(prep, m0, j, zero, N, alpha, min_gain, solve, rows=rows)["rmse_reduction"]
     return N, t, own, state
+
+
+#: (ninety-first round) the checks of a law in time against a free function of the state
+#: (:func:`_state_explains_one_way`) leave out the held-out rows faster than
+#: :data:`~drake_est.diagnose.nominal.EXTRAPOLATION_FACTOR` times the joint's fastest training row
+STATE_CHECK_WITHIN_TRAINING_SPEEDS = False
+
+
+def state_check_rows(prep, j):
+    """With :data:`STATE_CHECK_WITHIN_TRAINING_SPEEDS`: ``((training rows, held-out rows without the fast ones), how
+    many were left out)`` when joint ``j`` has held-out rows faster than
+    :data:`~drake_est.diagnose.nominal.EXTRAPOLATION_FACTOR` times its fastest training row
+    (:func:`~drake_est.diagnose.nominal.faster_than_training`), else ``(None, 0)`` (the joint's own rows).  The free
+    function of the state is a curve of the training speeds that holds its last value beyond them
+    (:func:`~drake_est.diagnose.competition.speed_law_nuisance`), while a law in time carries the nominal [qd, sign(qd)]
+    step of its segments: a few held-out samples of a move faster than any training one then decide which of the
+    two predicts better, on the curve's extrapolation, not on the speeds both were fitted on (fresh loop spec 33429: an
+    asymmetric level beside Stribeck at 100 Hz, 90 of 3,067 held-out samples at 0.35 rad/s against at most 0.17 in
+    training; with them the state's function alone lowers the held-out RMSE by 74 % and the abrupt change named
+    alone keeps 40 % given it, without them 89 % and 0.7 %)."""
+    jd = prep.joints[j]
+    if not STATE_CHECK_WITHIN_TRAINING_SPEEDS:
+        return None, 0
+    far = faster_than_training(jd.v[jd.rows], jd.train)
+    n = int(far.sum())
+    return ((jd.train, jd.val & ~far), n) if n else (None, 0)
 
 
 def _state_explains_one_way(prep, m0, j, C, alpha, min_gain):
@@ -1792,12 +1821,24 @@ def _state_explains_one_way(prep, m0, j, C, alpha, min_gain):
     explains the finding and the finding explains the function back, the two are kept apart only by the finding,
     which then stays (a change of the friction over the log that the moves make look like a function of the state).
     The checks of :func:`time_law_explained_by_state` (fifty-third round) and
-    :func:`sole_time_law_explained_by_state` (fifty-second round)."""
-    got = _state_explains(prep, m0, j, C, alpha, min_gain)
+    :func:`sole_time_law_explained_by_state` (fifty-second round).  Returns ``(got, back, left out)``: the held-out
+    rows of :func:`state_check_rows` left out of every test (ninety-first round), 0 when none."""
+    rows, n_far = state_check_rows(prep, j)
+    got = _state_explains(prep, m0, j, C, alpha, min_gain, rows=rows)
     if got is None:
         return None
-    back = comp._partial_test(prep, m0, j, C, got[0], alpha, min_gain, _model_solver(m0, j))
-    return (got, back) if back["significant"] else None
+    back = comp._partial_test(prep, m0, j, C, got[0], alpha, min_gain, _model_solver(m0, j), rows=rows)
+    return (got, back, n_far) if back["significant"] else None
+
+
+def _beyond_speeds_note(why, n_far) -> dict:
+    """The set-aside entry ``why`` of a law in time that a function of the state explains, with the held-out rows
+    left out of the tests (:func:`state_check_rows`) said and counted."""
+    if n_far:
+        why["reason"] += (f" ({n_far} held-out samples faster than {EXTRAPOLATION_FACTOR:g} times the fastest "
+                          "training sample left out of the comparison: the function is not known there)")
+        why["held_out_rows_beyond_training_speeds"] = n_far
+    return why
 
 
 def _state_entry(j, got, beside, what, alone, tail):
@@ -1852,8 +1893,9 @@ def time_law_explained_by_state(prep, model, steps, alpha, min_gain):
             else:
                 laws = " and ".join(x.replace("_", " ") for x in beside)
                 where, cause = f" beside its {laws}", f"the fixed shape of its {laws}"
-            return e.effect, j, _state_entry(j, got, where, f"the {e.effect.replace('_', ' ')}", "the law alone",
-                                             f": the misfit of {cause}, not a change of the friction over the log")
+            return e.effect, j, _beyond_speeds_note(
+                _state_entry(j, got, where, f"the {e.effect.replace('_', ' ')}", "the law alone",
+                             f": the misfit of {cause}, not a change of the friction over the log"), one_way[2])
     return None
 
 
@@ -1890,14 +1932,14 @@ def sole_time_law_explained_by_state(prep, model, unexplained, alpha, min_gain):
                                           alpha, min_gain)
         if one_way is None:
             continue
-        got, back = one_way
+        got, back, n_far = one_way
         why = _state_entry(j, got, "", f"the {e.effect.replace('_', ' ')}", "the law alone",
                            f"; given the law the function lowers it by {100 * back['rmse_reduction']:.1f} % "
                            f"(p = {back['p_value']:.2g}), and the final residual holds structure in "
                            f"{', '.join(sorted(set(where[j])))}: the law took part of a misfit of the state, not a "
                            "change of the friction over the log")
         why.update(sole_law_in_time=True, state_given_law=comp._brief(back))
-        return e.effect, j, why
+        return e.effect, j, _beyond_speeds_note(why, n_far)
     return None
 
 

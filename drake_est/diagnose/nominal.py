@@ -255,12 +255,23 @@ def beyond_training_speeds(v, train, factor: float = EXTRAPOLATION_FACTOR,
     (it also keeps a position load fitted for a backlash from being accepted: closed-loop spec 195)."""
     av = np.abs(np.asarray(v, float))
     train = np.asarray(train, bool)
-    none = np.zeros(av.shape, bool)
     if not train.any():
-        return none
+        return np.zeros(av.shape, bool)
     lo, hi = np.quantile(av[train], [0.05, 0.95])
     if hi >= one_level * lo:
-        return none
+        return np.zeros(av.shape, bool)
+    return faster_than_training(av, train, factor)
+
+
+def faster_than_training(v, train, factor: float = EXTRAPOLATION_FACTOR) -> np.ndarray:
+    """Validation rows (``~train``) faster than ``factor`` times the fastest training row, whatever the spread of the
+    training speeds (:func:`beyond_training_speeds` drops them where the training rows see one speed level; the
+    free function of the state of :func:`~drake_est.diagnose.core._state_explains_one_way` leaves them out of its
+    comparison everywhere: its speed curve holds its last value beyond the training speeds)."""
+    av = np.abs(np.asarray(v, float))
+    train = np.asarray(train, bool)
+    if not train.any():
+        return np.zeros(av.shape, bool)
     return ~train & (av > factor * float(av[train].max()))
 
 
