@@ -1791,7 +1791,7 @@ def _state_tests(prep, m0, j, C, alpha, min_gain, without=(), chosen=None, rows=
 #: (ninety-first round) the checks of a law in time against a free function of the state
 #: (:func:`_state_explains_one_way`) leave out the held-out rows faster than
 #: :data:`~drake_est.diagnose.nominal.EXTRAPOLATION_FACTOR` times the joint's fastest training row
-STATE_CHECK_WITHIN_TRAINING_SPEEDS = False
+STATE_CHECK_WITHIN_TRAINING_SPEEDS = True
 
 
 def state_check_rows(prep, j):

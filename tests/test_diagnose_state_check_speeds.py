@@ -1,0 +1,141 @@
+"""The ninety-first round: the checks of a law in time against a free function of its joint's state leave out the
+held-out rows faster than 1.5 times the fastest training row (``core.STATE_CHECK_WITHIN_TRAINING_SPEEDS``;
+``benchmarks/results/diagnose_state_check_speeds_round91_rule.txt``)."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from drake_est.diagnose import competition as comp
+from drake_est.diagnose import core
+from drake_est.diagnose.nominal import EXTRAPOLATION_FACTOR, beyond_training_speeds, faster_than_training
+
+
+def _speeds():
+    """Training speeds spread from 0.02 to 0.17 (a factor 8: not one speed level) and held-out speeds up to 0.35."""
+    train = np.array([True] * 8 + [False] * 8)
+    v = np.array([0.02, 0.03, 0.05, 0.08, 0.1, 0.12, 0.15, -0.17,
+                  0.02, -0.05, 0.1, 0.17, 0.25, 0.26, -0.35, 0.3])
+    return v, train
+
+
+def test_faster_than_training_whatever_the_spread():
+    """Held-out rows above 1.5 times the fastest training row (0.17 * 1.5 = 0.255), in either direction; no training
+    row is ever marked; ``beyond_training_speeds`` still drops them only on one speed level."""
+    v, train = _speeds()
+    far = faster_than_training(v, train)
+    assert np.flatnonzero(far).tolist() == [13, 14, 15]
+    assert not far[train].any()
+    assert not beyond_training_speeds(v, train).any()           # training speeds spread over a factor 8
+    one = np.where(train, 0.1 * np.sign(v), v)                  # one training speed level
+    assert np.flatnonzero(beyond_training_speeds(one, train)).tolist() == [11, 12, 13, 14, 15]   # above 0.15
+    assert not faster_than_training(v, np.zeros(v.size, bool)).any()
+    assert EXTRAPOLATION_FACTOR == 1.5
+
+
+def test_state_check_rows_switch(monkeypatch):
+    """``state_check_rows``: (None, 0) with the switch off or without fast held-out rows; with it on, the training
+    rows and the held-out rows without the fast ones, and how many were left out."""
+    v, train = _speeds()
+    jd = SimpleNamespace(v=v, rows=np.arange(v.size), train=train, val=~train)
+    prep = SimpleNamespace(joints={1: jd})
+    monkeypatch.setattr(core, "STATE_CHECK_WITHIN_TRAINING_SPEEDS", False)
+    assert core.state_check_rows(prep, 1) == (None, 0)
+    monkeypatch.setattr(core, "STATE_CHECK_WITHIN_TRAINING_SPEEDS", True)
+    (tr, va), n = core.state_check_rows(prep, 1)
+    assert n == 3 and tr is train and np.flatnonzero(va).tolist() == [8, 9, 10, 11, 12]
+    jd.v = np.clip(v, -0.2, 0.2)
+    assert core.state_check_rows(prep, 1) == (None, 0)
+
+
+@pytest.fixture(scope="module")
+def design_case():
+    """Fresh spec 33429 (an asymmetric level beside Stribeck, 100 Hz, Student-t noise) diagnosed with the switch off
+    and on: (module, spec, truth, off, on, None)."""
+    from conftest import closed_loop_off_and_on
+    return closed_loop_off_and_on(33429, "STATE_CHECK_WITHIN_TRAINING_SPEEDS")
+
+
+def test_state_nuisance_on_given_rows(design_case):
+    """``state_nuisance`` and ``_state_tests`` with ``rows``: the joint's own rows give what the default gives; the
+    held-out rows without the fast ones choose the function's blocks on those rows only (33429's prepared log: 90
+    fast held-out rows)."""
+    from conftest import closed_loop_case
+    from drake_est.diagnose.nominal import prepare
+    _, _, log, _ = closed_loop_case(33429)
+    prep = prepare(log, robot="generic", seed=0)
+    jd = prep.joints[1]
+    far = faster_than_training(jd.v[jd.rows], jd.train)
+    assert int(far.sum()) == 90
+    m0 = core.Model(prep, [])
+    solve = core._model_solver(m0, 1)
+    a, b = [], []
+    N0 = comp.state_nuisance(prep, m0, 1, solve=solve, chosen=a)
+    N1 = comp.state_nuisance(prep, m0, 1, solve=solve, chosen=b, rows=(jd.train, jd.val))
+    assert a == b and np.array_equal(N0, N1)
+    c = []
+    comp.state_nuisance(prep, m0, 1, solve=solve, chosen=c, rows=(jd.train, jd.val & ~far))
+    assert c and c != a                                         # the fast rows changed which blocks join
+
+
+def test_spec_33429_names_the_planted_pair(design_case):
+    """Off: an abrupt change named alone (a wrong name; both planted effects missed). On: the change is set aside by
+    the check of a sole law in time, with the 90 fast held-out rows left out and said, and the level and the Stribeck
+    law are named."""
+    mod, spec, truth, off, on, _ = design_case
+    assert sorted(truth["planted"]) == ["asymmetric_coulomb", "stribeck"]
+    assert [f["effect"] for f in off["findings"]] == ["abrupt_change"]
+    assert mod.judge(spec, off)["wrong"] == ["abrupt_change"]
+    first = on["set_aside"][0]
+    assert first["effect"] == "abrupt_change" and first.get("sole_law_in_time") and first["explained_by_state"]
+    assert first["held_out_rows_beyond_training_speeds"] == 90
+    assert "90 held-out samples faster than 1.5 times the fastest training sample left out" in first["reason"]
+    j = mod.judge(spec, on)
+    assert j["wrong"] == [] and j["missed"] == [] and j["correct"]
+    assert sorted(f["effect"] for f in on["findings"]) == ["asymmetric_coulomb", "stribeck"]
+
+
+def test_probe_candidates_and_screen():
+    """The probe's screen: a kept closed-loop row is a candidate when it names a law in time in ``got`` or among its
+    findings set aside; every open-loop row is; the screen of 33429 lists its 90 fast held-out rows."""
+    from conftest import bench_module
+    probe = bench_module("probe_state_check_speeds")
+    assert probe.candidate({"got": "abrupt_change", "set_aside": []})
+    assert probe.candidate({"got": "ambiguous(stribeck|energy_dependent_friction)"})
+    assert probe.candidate({"got": "stribeck", "set_aside": ["abrupt_change"]})
+    assert not probe.candidate({"got": "stribeck", "set_aside": ["position_dependent_load"]})
+    assert not probe.candidate({"got": "none"})
+    assert probe.candidate({"got": "none"}, family="testbench")
+    spec = probe.B.loop_cases(33430)[33429]
+    assert probe.fast_held_out_rows("loop", spec) == {"1": 90}
+
+
+def test_kept_and_its_table_is_its_jsons():
+    """Kept: the switch is on; the screen covered every candidate kept row (8,347 closed-loop logs, 1,081 with fast
+    held-out rows; 150 open-loop logs, none), the probe every screened log (lanes a and b, alternate keys); the rule
+    changed a check's outcome in the design log only, which lost its wrong name and both misses (its rule-on row is
+    now its kept row), and nothing was lost; the docs' table holds each lane's row as --against-off-rows prints it."""
+    import json
+    from pathlib import Path
+    from conftest import bench_module, probe_lanes, probe_results
+    assert core.STATE_CHECK_WITHIN_TRAINING_SPEEDS is True
+    probe = bench_module("probe_state_check_speeds")
+    root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+    screens = [json.loads((root / f"diagnose_state_check_speeds_round91_screen_{x}.json").read_text())
+               for x in ("0", "1", "testbench")]
+    loop = [k for d in screens[:2] for k in d["keys_screened"]]
+    assert sorted(loop) == probe.candidate_keys("loop") and len(loop) == 8347
+    assert screens[2]["keys_screened"] == probe.candidate_keys("testbench") and len(screens[2]["keys_screened"]) == 150
+    assert screens[2]["touched"] == [] and not any(d["refused"] for d in screens)
+    fast = probe.screened_keys([root / f"diagnose_state_check_speeds_round91_screen_{x}.json" for x in "01"])
+    assert len(fast) == 1081 and 33429 in fast
+    doc, files, examined, s = probe_lanes(probe, "diagnose_state_check_speeds_round91_lane_*.json", lanes="ab")
+    assert [len(d["keys_examined"]) for _, d in files] == [541, 540]
+    assert sorted(examined["loop"]) == fast and not examined["testbench"]
+    assert [t["k"] for f, d in files for t in d["touched"]] == [33429]
+    assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == s["outright_lost"] == []
+    assert s["wrong_lost"] == [33429] and s["missed_on"] <= s["missed_off"]
+    _, _, differences = probe_results("diagnose_state_check_speeds_round91_lane_*.json")
+    for f, d in files:
+        assert differences(d) == [], f.name          # the rule-on rows are the kept rows (33429 folded)
+    assert "It changed a check's outcome in one log of 1,081" in " ".join(doc.split())
