@@ -28,6 +28,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import bench_diagnose_testbench as B  # noqa: E402
+from drake_est.diagnose import core as _core  # noqa: E402
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
 from probe_runner import keys_args, kept_keys, kept_rows, probe_main, run_rule_probe  # noqa: E402
@@ -146,18 +147,17 @@ def screen_cli(argv) -> bool:
 def _record(got, a, kw):
     """The record of one check where the rule left rows out and changed its outcome (None otherwise): the outcome
     with the rule on (``got``) against the same call with it off."""
-    from drake_est.diagnose import core
     prep, m0, j, C, alpha, min_gain = a[:6]
-    if not core.STATE_CHECK_WITHIN_TRAINING_SPEEDS:
+    if not _core.STATE_CHECK_WITHIN_TRAINING_SPEEDS:
         return None
-    _, n_far = core.state_check_rows(prep, j)
+    _, n_far = _core.state_check_rows(prep, j)
     if not n_far:
         return None
-    core.STATE_CHECK_WITHIN_TRAINING_SPEEDS = False
+    _core.STATE_CHECK_WITHIN_TRAINING_SPEEDS = False
     try:
         off = _ORIGINAL(prep, m0, j, C, alpha, min_gain)
     finally:
-        core.STATE_CHECK_WITHIN_TRAINING_SPEEDS = True
+        _core.STATE_CHECK_WITHIN_TRAINING_SPEEDS = True
     if (got is None) == (off is None):
         return None
     laws = [e.effect for e in m0.exts if not e.shared and e.joint == j]
@@ -172,13 +172,8 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
                           row_class=row_class, compare_off=True)
 
 
-def _original():
-    from drake_est.diagnose import core
-    return core._state_explains_one_way
-
-
 # the unwrapped check (run_rule_probe wraps core._state_explains_one_way while it runs)
-_ORIGINAL = _original()
+_ORIGINAL = _core._state_explains_one_way
 
 
 def main(argv=None):

@@ -76,14 +76,9 @@ def test_kept_and_its_table_is_its_jsons():
     the 82 closed-loop logs whose kept rows named a ripple and a position law, lane b the 3 open-loop ones; the rule
     fired in the design log only, which lost its wrong name (its rule-on row is now its kept row), and nothing was
     lost."""
-    from conftest import bench_module, probe_lanes, probe_results
+    from conftest import assert_rule_mended_only, bench_module, probe_lanes
     assert core.FINER_BASIS_RIPPLE_RULE is True
     probe = bench_module("probe_finer_basis_ripple")
     doc, files, examined, s = probe_lanes(probe, "diagnose_finer_basis_ripple_round86_lane_*.json", lanes="ab")
     assert len(examined["loop"]) == 82 and len(examined["testbench"]) == 3 and 31089 in examined["loop"]
-    assert [t["k"] for f, d in files for t in d["touched"]] == [31089]
-    assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == s["outright_lost"] == []
-    assert s["wrong_lost"] == [31089] and s["missed_on"] <= s["missed_off"]
-    _, _, differences = probe_results("diagnose_finer_basis_ripple_round86_lane_*.json")
-    for f, d in files:
-        assert differences(d) == [], f.name          # the rule-on rows are the kept rows (31089 folded)
+    assert_rule_mended_only("diagnose_finer_basis_ripple_round86_lane_*.json", files, s, 31089)

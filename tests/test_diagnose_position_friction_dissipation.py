@@ -106,7 +106,7 @@ def test_kept_and_its_table_is_its_jsons():
     synth row is the same on and off."""
     import json
     from pathlib import Path
-    from conftest import bench_module, probe_lanes, probe_results
+    from conftest import assert_rule_mended_only, bench_module, probe_lanes
     assert core.POSITION_FRICTION_DISSIPATION_RULE is True
     probe = bench_module("probe_position_friction_dissipation")
     doc, files, examined, s = probe_lanes(probe, "diagnose_position_friction_dissipation_round89_lane_*.json",
@@ -116,12 +116,7 @@ def test_kept_and_its_table_is_its_jsons():
     # round)
     assert examined["loop"] >= set(probe.touchable_keys("loop")) | {30798, 14443, 32263, 33077}
     assert examined["testbench"] == set(probe.touchable_keys("testbench")) == {115}
-    assert [t["k"] for f, d in files for t in d["touched"]] == [30798]
-    assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == s["outright_lost"] == []
-    assert s["wrong_lost"] == [30798] and s["missed_on"] <= s["missed_off"]
-    _, _, differences = probe_results("diagnose_position_friction_dissipation_round89_lane_*.json")
-    for f, d in files:
-        assert differences(d) == [], f.name          # the rule-on rows are the kept rows (30798 folded)
+    assert_rule_mended_only("diagnose_position_friction_dissipation_round89_lane_*.json", files, s, 30798)
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     syn = json.loads((root / "diagnose_position_friction_dissipation_round89_synth_1.json").read_text())
     assert syn["on"]["got"] == syn["off"]["got"] == "position_dependent_friction" and syn["on"]["correct"]

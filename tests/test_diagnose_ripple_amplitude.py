@@ -68,17 +68,12 @@ def test_kept_and_its_table_is_its_jsons():
     b are the 1,472 closed-loop logs whose kept rows named a ripple and one of the laws (alternate keys), lane c the 8
     open-loop ones, lane d the 4 of the fresh block 31100-31199; the rule fired in the design log only, which lost its
     wrong name (its rule-on row is now its kept row), and nothing was lost."""
-    from conftest import bench_module, probe_lanes, probe_results
+    from conftest import assert_rule_mended_only, bench_module, probe_lanes
     assert core.RIPPLE_AMPLITUDE_RULE is True
     probe = bench_module("probe_ripple_amplitude")
     assert probe.LAWS == core.RIPPLE_AMPLITUDE_EFFECTS
     doc, files, examined, s = probe_lanes(probe, "diagnose_ripple_amplitude_round87_lane_*.json", lanes="abcd")
     assert [len(d["keys_examined"]) for _, d in files] == [736, 736, 8, 4]
     assert len(examined["loop"]) == 1476 and len(examined["testbench"]) == 8 and 31044 in examined["loop"]
-    assert [t["k"] for f, d in files for t in d["touched"]] == [31044]
-    assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == s["outright_lost"] == []
-    assert s["wrong_lost"] == [31044] and s["missed_on"] <= s["missed_off"]
-    _, _, differences = probe_results("diagnose_ripple_amplitude_round87_lane_*.json")
-    for f, d in files:
-        assert differences(d) == [], f.name          # the rule-on rows are the kept rows (31044 folded)
+    assert_rule_mended_only("diagnose_ripple_amplitude_round87_lane_*.json", files, s, 31044)
     assert f"{sum(len(d['keys_examined']) for _, d in files):,}" in doc

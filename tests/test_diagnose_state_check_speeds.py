@@ -119,7 +119,7 @@ def test_kept_and_its_table_is_its_jsons():
     now its kept row), and nothing was lost; the docs' table holds each lane's row as --against-off-rows prints it."""
     import json
     from pathlib import Path
-    from conftest import bench_module, probe_lanes, probe_results
+    from conftest import assert_rule_mended_only, bench_module, probe_lanes
     assert core.STATE_CHECK_WITHIN_TRAINING_SPEEDS is True
     probe = bench_module("probe_state_check_speeds")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
@@ -138,10 +138,5 @@ def test_kept_and_its_table_is_its_jsons():
     doc, files, examined, s = probe_lanes(probe, "diagnose_state_check_speeds_round91_lane_*.json", lanes="abcde")
     assert [len(d["keys_examined"]) for _, d in files] == [541, 540, 12, 12, 8]
     assert sorted(examined["loop"]) == fast and not examined["testbench"]
-    assert [t["k"] for f, d in files for t in d["touched"]] == [33429]
-    assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == s["outright_lost"] == []
-    assert s["wrong_lost"] == [33429] and s["missed_on"] <= s["missed_off"]
-    _, _, differences = probe_results("diagnose_state_check_speeds_round91_lane_*.json")
-    for f, d in files:
-        assert differences(d) == [], f.name          # the rule-on rows are the kept rows (33429 folded)
+    assert_rule_mended_only("diagnose_state_check_speeds_round91_lane_*.json", files, s, 33429)
     assert "It changed a check's outcome in one log of 1,113" in " ".join(doc.split())

@@ -1806,9 +1806,9 @@ def state_check_rows(prep, j):
     asymmetric level beside Stribeck at 100 Hz, 90 of 3,067 held-out samples at 0.35 rad/s against at most 0.17 in
     training; with them the state's function alone lowers the held-out RMSE by 74 % and the abrupt change named
     alone keeps 40 % given it, without them 89 % and 0.7 %)."""
-    jd = prep.joints[j]
     if not STATE_CHECK_WITHIN_TRAINING_SPEEDS:
         return None, 0
+    jd = prep.joints[j]
     far = faster_than_training(jd.v[jd.rows], jd.train)
     n = int(far.sum())
     return ((jd.train, jd.val & ~far), n) if n else (None, 0)
