@@ -1589,7 +1589,7 @@ def time_law_alternative(prep, out, max_findings, alpha, min_gain, blocked=froze
 #: (ninety-second round) a law in time set aside as not significant given the other findings, where the final model
 #: names the other law in time on its joint beside further findings: the search is run again with the named law closed
 #: and the set-aside one open (:func:`set_aside_time_law_alternative`)
-SET_ASIDE_TIME_LAW_ALTERNATIVE = False
+SET_ASIDE_TIME_LAW_ALTERNATIVE = True
 
 #: the reason :func:`finding_to_set_aside` gives a finding that a later one made redundant
 NOT_SIGNIFICANT_GIVEN_OTHERS = "not significant given the other findings"
