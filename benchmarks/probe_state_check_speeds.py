@@ -36,6 +36,8 @@ from probe_runner import keys_args, kept_keys, kept_rows, probe_main, run_rule_p
 RULE = "STATE_CHECK_WITHIN_TRAINING_SPEEDS"
 FUNC = "_state_explains_one_way"
 TIME_LAWS = ("abrupt_change", "energy_dependent_friction")
+#: what the screen lists
+FAST = "held-out rows faster than 1.5 times the fastest training row"
 
 
 def candidate(r: dict, family: str = "loop") -> bool:
@@ -71,18 +73,22 @@ def fast_held_out_rows(family: str, spec: dict) -> dict:
     return out
 
 
-def screen(out_path: str, keys, family: str = "loop", lane: str = "0/1") -> dict:
-    """:func:`fast_held_out_rows` of the logs ``keys`` in lane ``I/N`` (every N-th from I), written to ``out_path``
-    every 50 logs and at the end: ``{"family", "lane", "logs", "keys_screened", "touched": [[k, {joint: n}]],
-    "refused": [[k, message]]}``."""
+def screen(out_path: str, keys, family: str = "loop", lane: str = "0/1", measure=None, what: str = FAST,
+           desc: str = "prepare (fast held-out rows)") -> dict:
+    """``measure(family, spec)`` (:func:`fast_held_out_rows` unless given; a dict, empty when the log has nothing to
+    list, ``{"refused": message}`` when preparation refuses it) of the logs ``keys`` in lane ``I/N`` (every N-th from
+    I), written to ``out_path`` every 50 logs and at the end: ``{"family", "lane", "logs", "keys_screened",
+    "touched": [[k, {joint: ...}]], "refused": [[k, message]]}``; ``what``: what a listed log has, for the summary
+    line.  Also the ninety-third round's screen (``probe_load_untested_direction.py``)."""
+    measure = fast_held_out_rows if measure is None else measure
     from drake_est.progress import progress
     i, n = B._lane(lane)
     kept_rows(family, keys)     # exits when a key has no kept row
     mine = list(keys)[i::n]
     specs = (B.loop_cases if family == "loop" else B.cases)(max(mine) + 1) if mine else []
     res = {"family": family, "lane": f"{i}/{n}", "logs": 0, "keys_screened": [], "touched": [], "refused": []}
-    for m, k in enumerate(progress(mine, desc="prepare (fast held-out rows)")):
-        got = fast_held_out_rows(family, specs[k])
+    for m, k in enumerate(progress(mine, desc=desc)):
+        got = measure(family, specs[k])
         res["logs"] += 1
         res["keys_screened"].append(k)
         if "refused" in got:
@@ -92,8 +98,8 @@ def screen(out_path: str, keys, family: str = "loop", lane: str = "0/1") -> dict
         if m % 50 == 49:
             B._write_json(res, out_path)
     B._write_json(res, out_path)
-    print(f"{res['logs']} logs prepared (lane {res['lane']}); {len(res['touched'])} with held-out rows faster than "
-          f"1.5 times the fastest training row; {len(res['refused'])} refused")
+    print(f"{res['logs']} logs prepared (lane {res['lane']}); {len(res['touched'])} with {what}; "
+          f"{len(res['refused'])} refused")
     return res
 
 
@@ -122,8 +128,9 @@ def keys_cli(argv) -> None:
     print(" ".join(str(k) for k in keys))
 
 
-def screen_cli(argv) -> bool:
-    """``--screen OUT.json [--lane I/N] [--family=F] K ...``: run :func:`screen`; False when ``argv`` is not one."""
+def screen_cli(argv, **kw) -> bool:
+    """``--screen OUT.json [--lane I/N] [--family=F] K ...``: run :func:`screen` (``kw``: its ``measure``, ``what`` and
+    ``desc``); False when ``argv`` is not one."""
     if not argv or argv[0] != "--screen":
         return False
     family, lane, rest = "loop", "0/1", []
@@ -140,7 +147,7 @@ def screen_cli(argv) -> bool:
         keys = [int(x) for x in rest[1:]]
     except ValueError as e:
         raise SystemExit(f"--screen: expected spec numbers after OUT.json: {e}")
-    screen(rest[0], keys, family, lane)
+    screen(rest[0], keys, family, lane, **kw)
     return True
 
 

@@ -111,13 +111,19 @@ def asymmetric_testable(jd) -> bool:
     return min(n_neg, n_tr - n_neg) >= max(20, ASYM_MIN_SHARE * n_tr)
 
 
-def asymmetric(jd, r):
-    if not asymmetric_testable(jd):
-        return None
+def asymmetric_level(jd) -> Extension:
+    """The asymmetric Coulomb level of ``jd`` (a constant torque added while moving in the negative direction), whether
+    or not the log can test it (:func:`asymmetric_testable`)."""
     c = (jd.v[jd.rows] < 0).astype(float)[:, None]
     n_neg, _ = training_directions(jd)
     return Extension("asymmetric_coulomb", jd.joint, {jd.joint: c}, ["dkc_neg"], {"effect": "asymmetric_coulomb"},
                      {"negative_velocity_samples": n_neg})
+
+
+def asymmetric(jd, r):
+    if not asymmetric_testable(jd):
+        return None
+    return asymmetric_level(jd)
 
 
 #: the position laws built from Gaussian kernels in q: effect -> (parameter prefix, times sign(qd))

@@ -1,0 +1,87 @@
+"""The ninety-third round: a position load whose held-out gain lies mostly on the few samples moving in the direction
+in which the log cannot test an asymmetric Coulomb level is reported ambiguous with that level
+(``core.LOAD_IN_UNTESTED_DIRECTION_RULE``; ``benchmarks/results/diagnose_load_untested_direction_round93_rule.txt``)."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from drake_est.diagnose import core
+from drake_est.diagnose import detectors as det
+
+
+def _joint(n_neg_train, n_train=400, n_val=400, n_neg_val=30):
+    """A stand-in joint: ``n_train`` training rows (``n_neg_train`` moving in the negative direction), then ``n_val``
+    held-out rows (``n_neg_val`` of them negative)."""
+    v_tr = np.r_[-np.ones(n_neg_train), np.ones(n_train - n_neg_train)]
+    v_va = np.r_[-np.ones(n_neg_val), np.ones(n_val - n_neg_val)]
+    v = 0.1 * np.r_[v_tr, v_va]
+    train = np.r_[np.ones(n_train, bool), np.zeros(n_val, bool)]
+    return SimpleNamespace(joint=1, v=v, rows=np.arange(v.size), train=train, val=~train)
+
+
+def test_untested_direction():
+    """None where each direction holds at least 5 % (and 20) of the training rows; else the rare direction, its
+    held-out rows and its training count, either way round."""
+    assert core.untested_direction(_joint(40)) is None
+    name, rows, n_rare, n_tr = core.untested_direction(_joint(8))
+    assert (name, int(rows.sum()), n_rare, n_tr) == ("negative", 30, 8, 400)
+    assert not det.asymmetric_testable(_joint(8))
+    name, rows, n_rare, n_tr = core.untested_direction(_joint(395, n_neg_val=390))
+    assert (name, int(rows.sum()), n_rare, n_tr) == ("positive", 10, 5, 400)
+    jd = _joint(8)
+    jd.train = np.zeros(jd.v.size, bool)
+    assert core.untested_direction(jd) is None
+
+
+def test_asymmetric_level_whether_or_not_testable():
+    """``asymmetric_level`` builds the level's column (1 while moving in the negative direction) also where
+    ``asymmetric`` refuses it."""
+    jd = _joint(8)
+    assert det.asymmetric(jd, None) is None
+    lvl = det.asymmetric_level(jd)
+    assert lvl.effect == "asymmetric_coulomb" and lvl.cols[1][:, 0].tolist() == (jd.v < 0).astype(float).tolist()
+    assert det.asymmetric(_joint(40), None).cols[1].tolist() == det.asymmetric_level(_joint(40)).cols[1].tolist()
+
+
+def test_off_it_marks_nothing(monkeypatch):
+    """Switched off it returns at once (nothing fitted)."""
+    monkeypatch.setattr(core, "LOAD_IN_UNTESTED_DIRECTION_RULE", False)
+    assert core.mark_load_in_untested_direction(None, None, None, None, None) == []
+
+
+def test_probe_candidates():
+    """The probe's candidates: kept rows naming a position load, alone or in an ambiguity."""
+    from conftest import bench_module
+    probe = bench_module("probe_load_untested_direction")
+    assert probe.candidate({"got": "position_dependent_load"})
+    assert probe.candidate({"got": "ambiguous(asymmetric_coulomb|position_dependent_load)+stribeck"})
+    assert not probe.candidate({"got": "asymmetric_coulomb"}) and not probe.candidate({"got": "none"})
+
+
+@pytest.fixture(scope="module")
+def design_case():
+    """Fresh spec 35997 (an asymmetric level at 250 Hz, Student-t noise, moving in the negative direction in 8 of its
+    6,350 selected training samples) diagnosed with the switch off and on: (module, spec, truth, off, on, None)."""
+    from conftest import closed_loop_off_and_on
+    return closed_loop_off_and_on(35997, "LOAD_IN_UNTESTED_DIRECTION_RULE")
+
+
+def test_spec_35997_load_ambiguous_with_the_level(design_case):
+    """Off: a position load named alone (a wrong name, the level missed). On: the same model, the load ambiguous with
+    the level: 85 % of its held-out gain lies in the 57 held-out samples moving in the negative direction, and the
+    level in its place predicts as well; the next experiment still asks for passes in that direction."""
+    mod, spec, truth, off, on, _ = design_case
+    assert truth["planted"] == ["asymmetric_coulomb"]
+    assert [f["effect"] for f in off["findings"]] == ["position_dependent_load"]
+    assert mod.judge(spec, off)["wrong"] == ["position_dependent_load"]
+    assert [f["effect"] for f in on["findings"]] == ["position_dependent_load"]
+    c = on["findings"][0]["competition"]
+    assert c["ambiguous"] and c["ambiguous_with"] == ["asymmetric_coulomb"]
+    info = c["untested_direction"]
+    assert info["direction"] == "negative" and info["held_out_samples_in_direction"] == [57, 6935]
+    assert info["selected_training_samples_in_direction"][0] == 8
+    assert info["held_out_gain_share_in_direction"] > 0.8 and info["paired_p_value"] >= core.PAIRED_ALPHA
+    j = mod.judge(spec, on)
+    assert j["wrong"] == [] and j["missed"] == [] and j["correct"]
+    assert any(n.get("direction") == "negative" for n in on["next_experiment"])
