@@ -2957,7 +2957,7 @@ def _add_rivals(st, new, key, info, reason) -> None:
 #: (ninety-third round) a position load whose held-out gain lies mostly on the few samples moving in the direction in
 #: which the log cannot test an asymmetric Coulomb level is reported ambiguous with that level
 #: (:func:`mark_load_in_untested_direction`)
-LOAD_IN_UNTESTED_DIRECTION_RULE = False
+LOAD_IN_UNTESTED_DIRECTION_RULE = True
 #: ... from this share of the load's held-out gain (the summed per-sample squared-error gains) on those samples
 UNTESTED_DIRECTION_GAIN_SHARE = 0.5
 
