@@ -62,7 +62,7 @@ def test_probe_candidates():
 @pytest.fixture(scope="module")
 def design_case():
     """Fresh spec 35997 (an asymmetric level at 250 Hz, Student-t noise, moving in the negative direction in 8 of its
-    6,350 selected training samples) diagnosed with the switch off and on: (module, spec, truth, off, on, None)."""
+    6,344 selected training samples) diagnosed with the switch off and on: (module, spec, truth, off, on, None)."""
     from conftest import closed_loop_off_and_on
     return closed_loop_off_and_on(35997, "LOAD_IN_UNTESTED_DIRECTION_RULE")
 
