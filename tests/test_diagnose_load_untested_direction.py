@@ -91,7 +91,8 @@ def test_kept_and_its_table_is_its_jsons():
     """Kept: the switch is on; the screens covered every kept row naming a load (9,494 closed-loop rows below the fresh
     blocks 36000-36399 in two lanes, 66 with an untestable level and held-out rows in its rare direction, one refused;
     the 23 open-loop rows, none; screen c: the 109 of 36000-36399, one; screen d: the 107 of 36400-36799,
-    none; screen e: the 104 of 36800-37199, none); the probe every screened log (lanes a and b,
+    none; screen e: the 104 of 36800-37199, none; screen f: the
+    51 of 37200-37399, none); the probe every screened log (lanes a and b,
     alternate keys; c); the rule marked a load in the design log only, which lost its wrong name, and nothing was lost;
     the docs' table holds each lane's row as --against-off-rows prints it."""
     import json
@@ -101,19 +102,21 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_load_untested_direction")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = {x: json.loads((root / f"diagnose_load_untested_direction_round93_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d", "e")}
-    loop = [k for x in "01cde" for k in screens[x]["keys_screened"]]
+               for x in ("0", "1", "testbench", "c", "d", "e", "f")}
+    loop = [k for x in "01cdef" for k in screens[x]["keys_screened"]]
     assert sorted(loop) == probe.candidate_keys("loop")
-    assert len(loop) - sum(len(screens[x]["keys_screened"]) for x in "cde") == 9494 and max(screens["0"]["keys_screened"]) < 36000
+    assert len(loop) - sum(len(screens[x]["keys_screened"]) for x in "cdef") == 9494 and max(screens["0"]["keys_screened"]) < 36000
     assert len(screens["c"]["keys_screened"]) == 109 and min(screens["c"]["keys_screened"]) >= 36000
     assert len(screens["d"]["keys_screened"]) == 107 and screens["d"]["touched"] == []
     assert max(screens["c"]["keys_screened"]) < 36400 <= min(screens["d"]["keys_screened"])
     assert len(screens["e"]["keys_screened"]) == 104 and screens["e"]["touched"] == []
     assert max(screens["d"]["keys_screened"]) < 36800 <= min(screens["e"]["keys_screened"])
+    assert len(screens["f"]["keys_screened"]) == 51 and screens["f"]["touched"] == []
+    assert max(screens["e"]["keys_screened"]) < 37200 <= min(screens["f"]["keys_screened"])
     assert screens["testbench"]["keys_screened"] == probe.candidate_keys("testbench")
     assert len(screens["testbench"]["keys_screened"]) == 23 and screens["testbench"]["touched"] == []
-    assert [k for x in "01cde" for k, _ in screens[x]["refused"]] == [17787]
-    listed = probe.screened_keys([root / f"diagnose_load_untested_direction_round93_screen_{x}.json" for x in "01cde"])
+    assert [k for x in "01cdef" for k, _ in screens[x]["refused"]] == [17787]
+    listed = probe.screened_keys([root / f"diagnose_load_untested_direction_round93_screen_{x}.json" for x in "01cdef"])
     assert len(listed) == 67 and 35997 in listed
     doc, files, examined, s = probe_lanes(probe, "diagnose_load_untested_direction_round93_lane_*.json", lanes="abc")
     assert [len(d["keys_examined"]) for _, d in files] == [33, 33, 1]

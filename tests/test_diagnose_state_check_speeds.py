@@ -115,7 +115,8 @@ def test_kept_and_its_table_is_its_jsons():
     held-out rows; 150 open-loop logs, none; after the round, screen c: the 97 of the fresh blocks 34000-34399, run
     with the rule on, 12 with such rows; screen d: the 100 of 34400-34799, 12; screen e: the 51 of 34800-34999, 8;
     screen f: the 101 of 35000-35399, 15; screen g: the 50 of 35400-35599, 7; screen h: the 97 of 35600-35999, 8; screen i: the 97 of 36000-36399, 14; screen j: the 100 of 36400-36799, 6;
-    screen k: the 94 of 36800-37199, 12), the probe every screened log (lanes a and b, alternate keys; c-k);
+    screen k: the 94 of 36800-37199, 12; screen l: the 52 of 37200-37399, 9), the probe every screened log
+    (lanes a and b, alternate keys; c-l);
     the rule changed a check's outcome in the design log only, which lost its wrong name and both misses (its rule-on row is
     now its kept row), and nothing was lost; the docs' table holds each lane's row as --against-off-rows prints it."""
     import json
@@ -125,14 +126,14 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_state_check_speeds")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = [json.loads((root / f"diagnose_state_check_speeds_round91_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j", "k")]
+               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j", "k", "l")]
     loop = [k for d in screens[:2] for k in d["keys_screened"]]
     assert len(loop) == 8347 and max(loop) < 34000
     assert sorted(loop + screens[3]["keys_screened"] + screens[4]["keys_screened"]
                   + screens[5]["keys_screened"] + screens[6]["keys_screened"]
                   + screens[7]["keys_screened"] + screens[8]["keys_screened"]
                   + screens[9]["keys_screened"] + screens[10]["keys_screened"]
-                  + screens[11]["keys_screened"]) == probe.candidate_keys("loop")
+                  + screens[11]["keys_screened"] + screens[12]["keys_screened"]) == probe.candidate_keys("loop")
     assert len(screens[3]["keys_screened"]) == 97 and 34000 <= min(screens[3]["keys_screened"])
     assert len(screens[4]["keys_screened"]) == 100 and max(screens[3]["keys_screened"]) < min(screens[4]["keys_screened"])
     assert len(screens[6]["keys_screened"]) == 101
@@ -147,12 +148,14 @@ def test_kept_and_its_table_is_its_jsons():
     assert max(screens[9]["keys_screened"]) < 36400 <= min(screens[10]["keys_screened"])
     assert len(screens[11]["keys_screened"]) == 94
     assert max(screens[10]["keys_screened"]) < 36800 <= min(screens[11]["keys_screened"])
+    assert len(screens[12]["keys_screened"]) == 52
+    assert max(screens[11]["keys_screened"]) < 37200 <= min(screens[12]["keys_screened"])
     assert screens[2]["keys_screened"] == probe.candidate_keys("testbench") and len(screens[2]["keys_screened"]) == 150
     assert screens[2]["touched"] == [] and not any(d["refused"] for d in screens)
-    fast = probe.screened_keys([root / f"diagnose_state_check_speeds_round91_screen_{x}.json" for x in "01cdefghijk"])
-    assert len(fast) == 1175 and 33429 in fast
-    doc, files, examined, s = probe_lanes(probe, "diagnose_state_check_speeds_round91_lane_*.json", lanes="abcdefghijk")
-    assert [len(d["keys_examined"]) for _, d in files] == [541, 540, 12, 12, 8, 15, 7, 8, 14, 6, 12]
+    fast = probe.screened_keys([root / f"diagnose_state_check_speeds_round91_screen_{x}.json" for x in "01cdefghijkl"])
+    assert len(fast) == 1184 and 33429 in fast
+    doc, files, examined, s = probe_lanes(probe, "diagnose_state_check_speeds_round91_lane_*.json", lanes="abcdefghijkl")
+    assert [len(d["keys_examined"]) for _, d in files] == [541, 540, 12, 12, 8, 15, 7, 8, 14, 6, 12, 9]
     assert sorted(examined["loop"]) == fast and not examined["testbench"]
     assert_rule_mended_only("diagnose_state_check_speeds_round91_lane_*.json", files, s, 33429)
-    assert "It changed a check's outcome in one log of 1,175" in " ".join(doc.split())
+    assert "It changed a check's outcome in one log of 1,184" in " ".join(doc.split())
