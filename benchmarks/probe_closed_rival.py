@@ -45,12 +45,13 @@ def touchable_keys(family: str = "loop", results_dir=None) -> list:
     return kept_keys(family, touchable, results_dir)
 
 
-def keys_cli(argv) -> None:
-    """``--keys touchable [--family=F]``: the touchable kept rows; ``--keys all [--family=F]``: every kept row of the
-    family (for the families whose rows do not store the set-aside list)."""
+def keys_cli(argv, touchable=touchable) -> None:
+    """``--keys touchable [--family=F]``: the kept rows for which ``touchable(row)`` holds (:func:`touchable` unless
+    given; the ninety-second round's probe passes its own); ``--keys all [--family=F]``: every kept row of the family
+    (for the families whose rows do not store the set-aside list)."""
     family, rest = keys_args(argv)
     if rest == ["touchable"]:
-        keys = touchable_keys(family)
+        keys = kept_keys(family, touchable)
     elif rest == ["all"]:
         keys = kept_keys(family, lambda r: True)
     else:

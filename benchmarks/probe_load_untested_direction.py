@@ -23,6 +23,7 @@ such a joint and held-out rows in its rare direction; ``--keys screened SCREEN.j
 """
 from __future__ import annotations
 
+import functools
 import os
 import sys
 
@@ -31,8 +32,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bench_diagnose_testbench as B  # noqa: E402
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
-from probe_runner import keys_args, kept_keys, probe_main, run_rule_probe  # noqa: E402
-from probe_state_check_speeds import screen_cli, screened_keys  # noqa: E402
+import probe_state_check_speeds  # noqa: E402
+from probe_runner import kept_keys, probe_main, run_rule_probe  # noqa: E402
+from probe_state_check_speeds import screen_cli, screened_keys  # noqa: E402,F401
 
 RULE = "LOAD_IN_UNTESTED_DIRECTION_RULE"
 FUNC = "mark_load_in_untested_direction"
@@ -70,17 +72,8 @@ def untested_direction_rows(family: str, spec: dict) -> dict:
     return out
 
 
-def keys_cli(argv) -> None:
-    """``--keys candidates [--family=F]``: the kept rows the rule can change; ``--keys screened S.json ...
-    [--family=F]``: those the screens list."""
-    family, rest = keys_args(argv)
-    if rest == ["candidates"]:
-        keys = candidate_keys(family)
-    elif rest and rest[0] == "screened" and len(rest) > 1:
-        keys = screened_keys(rest[1:], family)
-    else:
-        raise SystemExit("--keys: expected 'candidates' or 'screened SCREEN.json ...'")
-    print(" ".join(str(k) for k in keys))
+#: ``--keys candidates`` / ``--keys screened S.json ...``, as the ninety-first round's probe reads them
+keys_cli = functools.partial(probe_state_check_speeds.keys_cli, candidate_keys=candidate_keys)
 
 
 def _record(got, a, kw):

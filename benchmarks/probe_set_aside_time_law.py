@@ -23,6 +23,7 @@ way; the open-loop rows are probed whole (``--keys all --family=testbench``).
 """
 from __future__ import annotations
 
+import functools
 import os
 import sys
 
@@ -30,7 +31,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
-from probe_runner import keys_args, kept_keys, probe_main, run_rule_probe  # noqa: E402
+import probe_closed_rival  # noqa: E402
+from probe_runner import kept_keys, probe_main, run_rule_probe  # noqa: E402
 
 from drake_est.diagnose.core import TIME_LAW_PAIR  # noqa: E402
 
@@ -50,17 +52,8 @@ def touchable_keys(family: str = "loop", results_dir=None) -> list:
     return kept_keys(family, touchable, results_dir)
 
 
-def keys_cli(argv) -> None:
-    """``--keys touchable [--family=F]``: the touchable kept rows; ``--keys all [--family=F]``: every kept row of the
-    family (for the families whose rows do not store the set-aside list)."""
-    family, rest = keys_args(argv)
-    if rest == ["touchable"]:
-        keys = touchable_keys(family)
-    elif rest == ["all"]:
-        keys = kept_keys(family, lambda r: True)
-    else:
-        raise SystemExit("--keys: expected 'touchable' or 'all'")
-    print(" ".join(str(k) for k in keys))
+#: ``--keys touchable`` / ``--keys all``, as the ninetieth round's probe reads them
+keys_cli = functools.partial(probe_closed_rival.keys_cli, touchable=touchable)
 
 
 def _record(got, a, kw):

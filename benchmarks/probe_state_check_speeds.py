@@ -115,9 +115,10 @@ def screened_keys(paths, family: str = "loop") -> list:
     return sorted(out)
 
 
-def keys_cli(argv) -> None:
-    """``--keys candidates [--family=F]``: the kept rows the rule can change; ``--keys screened S.json ...
-    [--family=F]``: those the screens list with fast held-out rows."""
+def keys_cli(argv, candidate_keys=candidate_keys) -> None:
+    """``--keys candidates [--family=F]``: the kept rows the rule can change (``candidate_keys(family)``,
+    :func:`candidate_keys` unless given; the ninety-third round's probe passes its own); ``--keys screened S.json ...
+    [--family=F]``: those the screens list."""
     family, rest = keys_args(argv)
     if rest == ["candidates"]:
         keys = candidate_keys(family)

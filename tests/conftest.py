@@ -154,6 +154,19 @@ def assert_rule_mended_only(pattern: str, files, s, k: int) -> None:
         assert differences(d) == [], f.name
 
 
+def assert_fresh_screens(blocks) -> None:
+    """Screens of fresh blocks, in order: each ``(screen JSON, size, first spec)`` of ``blocks`` lists ``size`` keys,
+    none below ``first spec`` and every one above each key of the screen before it (the blocks do not overlap)."""
+    prev = None
+    for screen, size, first in blocks:
+        keys = screen["keys_screened"]
+        assert len(keys) == size, (first, len(keys))
+        assert first <= min(keys), first
+        if prev is not None:
+            assert max(prev) < first, first
+        prev = keys
+
+
 def search_names(d) -> list:
     """The effects a diagnosis search ``d`` (:func:`drake_est.diagnose.core.run_diagnosis`) names: each step's effect,
     then the rivals of the steps reported ambiguous."""

@@ -90,14 +90,13 @@ def test_spec_35997_load_ambiguous_with_the_level(design_case):
 def test_kept_and_its_table_is_its_jsons():
     """Kept: the switch is on; the screens covered every kept row naming a load (9,494 closed-loop rows below the fresh
     blocks 36000-36399 in two lanes, 66 with an untestable level and held-out rows in its rare direction, one refused;
-    the 23 open-loop rows, none; screen c: the 109 of 36000-36399, one; screen d: the 107 of 36400-36799,
-    none; screen e: the 104 of 36800-37199, none; screen f: the
-    51 of 37200-37399, none); the probe every screened log (lanes a and b,
-    alternate keys; c); the rule marked a load in the design log only, which lost its wrong name, and nothing was lost;
-    the docs' table holds each lane's row as --against-off-rows prints it."""
+    the 23 open-loop rows, none; screen c: the 109 of 36000-36399, one; screen d: the 107 of 36400-36799, none;
+    screen e: the 104 of 36800-37199, none; screen f: the 51 of 37200-37399, none); the probe every screened log
+    (lanes a and b, alternate keys; c); the rule marked a load in the design log only, which lost its wrong name, and
+    nothing was lost; the docs' table holds each lane's row as --against-off-rows prints it."""
     import json
     from pathlib import Path
-    from conftest import assert_rule_mended_only, bench_module, probe_lanes
+    from conftest import assert_fresh_screens, assert_rule_mended_only, bench_module, probe_lanes
     assert core.LOAD_IN_UNTESTED_DIRECTION_RULE is True
     probe = bench_module("probe_load_untested_direction")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
@@ -105,14 +104,11 @@ def test_kept_and_its_table_is_its_jsons():
                for x in ("0", "1", "testbench", "c", "d", "e", "f")}
     loop = [k for x in "01cdef" for k in screens[x]["keys_screened"]]
     assert sorted(loop) == probe.candidate_keys("loop")
-    assert len(loop) - sum(len(screens[x]["keys_screened"]) for x in "cdef") == 9494 and max(screens["0"]["keys_screened"]) < 36000
-    assert len(screens["c"]["keys_screened"]) == 109 and min(screens["c"]["keys_screened"]) >= 36000
-    assert len(screens["d"]["keys_screened"]) == 107 and screens["d"]["touched"] == []
-    assert max(screens["c"]["keys_screened"]) < 36400 <= min(screens["d"]["keys_screened"])
-    assert len(screens["e"]["keys_screened"]) == 104 and screens["e"]["touched"] == []
-    assert max(screens["d"]["keys_screened"]) < 36800 <= min(screens["e"]["keys_screened"])
-    assert len(screens["f"]["keys_screened"]) == 51 and screens["f"]["touched"] == []
-    assert max(screens["e"]["keys_screened"]) < 37200 <= min(screens["f"]["keys_screened"])
+    assert len(loop) - sum(len(screens[x]["keys_screened"]) for x in "cdef") == 9494
+    assert max(screens["0"]["keys_screened"]) < 36000
+    # the fresh blocks' screens c-f: (size, first spec of the blocks); d-f list no log
+    assert_fresh_screens(zip((screens[x] for x in "cdef"), (109, 107, 104, 51), (36000, 36400, 36800, 37200)))
+    assert all(screens[x]["touched"] == [] for x in "def")
     assert screens["testbench"]["keys_screened"] == probe.candidate_keys("testbench")
     assert len(screens["testbench"]["keys_screened"]) == 23 and screens["testbench"]["touched"] == []
     assert [k for x in "01cdef" for k, _ in screens[x]["refused"]] == [17787]

@@ -114,14 +114,14 @@ def test_kept_and_its_table_is_its_jsons():
     """Kept: the switch is on; the screen covered every candidate kept row (8,347 closed-loop logs, 1,081 with fast
     held-out rows; 150 open-loop logs, none; after the round, screen c: the 97 of the fresh blocks 34000-34399, run
     with the rule on, 12 with such rows; screen d: the 100 of 34400-34799, 12; screen e: the 51 of 34800-34999, 8;
-    screen f: the 101 of 35000-35399, 15; screen g: the 50 of 35400-35599, 7; screen h: the 97 of 35600-35999, 8; screen i: the 97 of 36000-36399, 14; screen j: the 100 of 36400-36799, 6;
-    screen k: the 94 of 36800-37199, 12; screen l: the 52 of 37200-37399, 9), the probe every screened log
-    (lanes a and b, alternate keys; c-l);
-    the rule changed a check's outcome in the design log only, which lost its wrong name and both misses (its rule-on row is
+    screen f: the 101 of 35000-35399, 15; screen g: the 50 of 35400-35599, 7; screen h: the 97 of 35600-35999, 8;
+    screen i: the 97 of 36000-36399, 14; screen j: the 100 of 36400-36799, 6; screen k: the 94 of 36800-37199, 12;
+    screen l: the 52 of 37200-37399, 9), the probe every screened log (lanes a and b, alternate keys; c-l); the rule
+    changed a check's outcome in the design log only, which lost its wrong name and both misses (its rule-on row is
     now its kept row), and nothing was lost; the docs' table holds each lane's row as --against-off-rows prints it."""
     import json
     from pathlib import Path
-    from conftest import assert_rule_mended_only, bench_module, probe_lanes
+    from conftest import assert_fresh_screens, assert_rule_mended_only, bench_module, probe_lanes
     assert core.STATE_CHECK_WITHIN_TRAINING_SPEEDS is True
     probe = bench_module("probe_state_check_speeds")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
@@ -129,27 +129,10 @@ def test_kept_and_its_table_is_its_jsons():
                for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j", "k", "l")]
     loop = [k for d in screens[:2] for k in d["keys_screened"]]
     assert len(loop) == 8347 and max(loop) < 34000
-    assert sorted(loop + screens[3]["keys_screened"] + screens[4]["keys_screened"]
-                  + screens[5]["keys_screened"] + screens[6]["keys_screened"]
-                  + screens[7]["keys_screened"] + screens[8]["keys_screened"]
-                  + screens[9]["keys_screened"] + screens[10]["keys_screened"]
-                  + screens[11]["keys_screened"] + screens[12]["keys_screened"]) == probe.candidate_keys("loop")
-    assert len(screens[3]["keys_screened"]) == 97 and 34000 <= min(screens[3]["keys_screened"])
-    assert len(screens[4]["keys_screened"]) == 100 and max(screens[3]["keys_screened"]) < min(screens[4]["keys_screened"])
-    assert len(screens[6]["keys_screened"]) == 101
-    assert max(screens[5]["keys_screened"]) < 35000 <= min(screens[6]["keys_screened"])
-    assert len(screens[7]["keys_screened"]) == 50
-    assert max(screens[6]["keys_screened"]) < 35400 <= min(screens[7]["keys_screened"])
-    assert len(screens[8]["keys_screened"]) == 97
-    assert max(screens[7]["keys_screened"]) < 35600 <= min(screens[8]["keys_screened"])
-    assert len(screens[9]["keys_screened"]) == 97
-    assert max(screens[8]["keys_screened"]) < 36000 <= min(screens[9]["keys_screened"])
-    assert len(screens[10]["keys_screened"]) == 100
-    assert max(screens[9]["keys_screened"]) < 36400 <= min(screens[10]["keys_screened"])
-    assert len(screens[11]["keys_screened"]) == 94
-    assert max(screens[10]["keys_screened"]) < 36800 <= min(screens[11]["keys_screened"])
-    assert len(screens[12]["keys_screened"]) == 52
-    assert max(screens[11]["keys_screened"]) < 37200 <= min(screens[12]["keys_screened"])
+    assert sorted(loop + [k for d in screens[3:] for k in d["keys_screened"]]) == probe.candidate_keys("loop")
+    # the fresh blocks' screens c-l: (size, first spec of the blocks)
+    assert_fresh_screens(zip(screens[3:], (97, 100, 51, 101, 50, 97, 97, 100, 94, 52),
+                             (34000, 34400, 34800, 35000, 35400, 35600, 36000, 36400, 36800, 37200)))
     assert screens[2]["keys_screened"] == probe.candidate_keys("testbench") and len(screens[2]["keys_screened"]) == 150
     assert screens[2]["touched"] == [] and not any(d["refused"] for d in screens)
     fast = probe.screened_keys([root / f"diagnose_state_check_speeds_round91_screen_{x}.json" for x in "01cdefghijkl"])

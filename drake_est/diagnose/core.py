@@ -1548,6 +1548,27 @@ def finding_to_set_aside(prep, model, sigma, alpha, min_gain, ambiguous=None, cl
 TIME_LAW_PAIR = comp.FLOORED_LAWS
 
 
+def _fewer_findings_alternative(prep, fit, law, joint, others, closed, max_findings, alpha, min_gain):
+    """The test shared by :func:`time_law_alternative` and :func:`set_aside_time_law_alternative`: the search run with
+    ``closed`` (the blocked findings) names the law in time ``law`` on ``joint`` and only some of ``others`` (the final
+    model's other findings, none new), and the paired held-out blocks do not show the final model (``fit``) predicting
+    the joint better (:func:`~drake_est.diagnose.competition.paired_block_test` at :data:`PAIRED_ALPHA`).  Returns
+    ``(alternative search output, info)`` (both held-out RMSEs, the paired p, the findings dropped), else None."""
+    alt = _search(prep, max_findings, alpha, min_gain, closed)
+    got = {(x.effect, None if x.shared else x.joint) for x in alt[5].exts}
+    if (law, joint) not in got or not got - {(law, joint)} < others:
+        return None
+    paired = comp.paired_block_test(prep, alt[4], fit, [joint])
+    if paired["p_value"] < PAIRED_ALPHA:
+        return None
+    rm, ra = _val_metrics(prep, fit, [joint])["rmse"], _val_metrics(prep, alt[4], [joint])["rmse"]
+    info = {"alternative_findings": sorted(x for x, _ in got), "dropped": sorted(x for x, _ in others - got),
+            "heldout_rmse": float(ra), "heldout_rmse_of_final_model": float(rm),
+            "paired_p_value": float(paired["p_value"]), "paired_groups": paired["groups"],
+            "groups_final_model_better": paired["groups_better"]}
+    return alt, info
+
+
 def time_law_alternative(prep, out, max_findings, alpha, min_gain, blocked=frozenset()):
     """A law in time (:data:`TIME_LAW_PAIR`) named ambiguous with the other one, beside further findings of its
     joint: the search run again with the named one closed fits the rival in its place.  When that alternative names
@@ -1570,19 +1591,10 @@ def time_law_alternative(prep, out, max_findings, alpha, min_gain, blocked=froze
         others = named - {(e.effect, e.joint)}
         if not any(j == e.joint for _, j in others):
             continue
-        alt = _search(prep, max_findings, alpha, min_gain, set(blocked) | {(e.effect, e.joint)})
-        got = {(x.effect, None if x.shared else x.joint) for x in alt[5].exts}
-        if (rival, e.joint) not in got or not got - {(rival, e.joint)} < others:
-            continue
-        paired = comp.paired_block_test(prep, alt[4], fit, [e.joint])
-        if paired["p_value"] < PAIRED_ALPHA:
-            continue
-        rm, ra = _val_metrics(prep, fit, [e.joint])["rmse"], _val_metrics(prep, alt[4], [e.joint])["rmse"]
-        dropped = sorted(x for x, _ in others - got)
-        info = {"alternative_findings": sorted(x for x, _ in got), "dropped": dropped, "heldout_rmse": float(ra),
-                "heldout_rmse_of_final_model": float(rm), "paired_p_value": float(paired["p_value"]),
-                "paired_groups": paired["groups"], "groups_final_model_better": paired["groups_better"]}
-        return e.effect, e.joint, rival, alt, info
+        found = _fewer_findings_alternative(prep, fit, rival, e.joint, others, set(blocked) | {(e.effect, e.joint)},
+                                            max_findings, alpha, min_gain)
+        if found is not None:
+            return e.effect, e.joint, rival, found[0], found[1]
     return None
 
 
@@ -1623,21 +1635,13 @@ def set_aside_time_law_alternative(prep, out, set_aside, max_findings, alpha, mi
         others = named - {(rival, joint)}
         if not any(j == joint for _, j in others):
             continue
-        alt = _search(prep, max_findings, alpha, min_gain, (set(blocked) - {(effect, joint)}) | {(rival, joint)})
-        got = {(x.effect, None if x.shared else x.joint) for x in alt[5].exts}
-        if (effect, joint) not in got or not got - {(effect, joint)} < others:
-            continue
-        paired = comp.paired_block_test(prep, alt[4], fit, [joint])
-        if paired["p_value"] < PAIRED_ALPHA:
-            continue
-        rm, ra = _val_metrics(prep, fit, [joint])["rmse"], _val_metrics(prep, alt[4], [joint])["rmse"]
-        dropped = sorted(x for x, _ in others - got)
-        info = {"alternative_findings": sorted(x for x, _ in got), "dropped": dropped, "heldout_rmse": float(ra),
-                "heldout_rmse_of_final_model": float(rm), "paired_p_value": float(paired["p_value"]),
-                "paired_groups": paired["groups"], "groups_final_model_better": paired["groups_better"],
-                "set_aside_before": dict(entry)}
-        return effect, joint, rival, alt, info
+        found = _fewer_findings_alternative(prep, fit, effect, joint, others,
+                                            (set(blocked) - {(effect, joint)}) | {(rival, joint)},
+                                            max_findings, alpha, min_gain)
+        if found is not None:
+            return effect, joint, rival, found[0], {**found[1], "set_aside_before": dict(entry)}
     return None
+
 
 def level_alternatives(prep, model, fit, max_findings, alpha, min_gain, blocked=frozenset()) -> dict:
     """The model-level rival of a finding that contains its joint's asymmetric Coulomb level (a position load:
@@ -3619,8 +3623,6 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
                                f"{info['paired_p_value']:.2g}): those findings only absorbed the misfit of "
                                f"{effect}")})
                 time_alt = (rival, joint, effect, info, "ambiguous with it, ")
-                prep.meta.pop("payload_ext", None)
-                ambiguous = {}
             else:
                 # a law in time set aside as not significant given later findings among which the other law in
                 # time stands: the search again with that law closed and the set-aside one open
@@ -3643,8 +3645,9 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
                                    f"larger model predicting better, paired p = {info['paired_p_value']:.2g}): "
                                    f"those findings and {rival} only took what {effect} explained")})
                     time_alt = (effect, joint, rival, info, "")
-                    prep.meta.pop("payload_ext", None)
-                    ambiguous = {}
+            if alt is not None:
+                prep.meta.pop("payload_ext", None)
+                ambiguous = {}
         if time_alt is not None and any(x.effect == time_alt[0] and not x.shared and x.joint == time_alt[1]
                                         for x in out[5].exts):
             rival, joint, effect, info, how = time_alt
