@@ -20,9 +20,13 @@ it lists every open-loop row.
     python benchmarks/probe_ripple_before_position_law.py --keys control > kc.txt
     OPENBLAS_NUM_THREADS=1 python benchmarks/probe_ripple_before_position_law.py OUT.json $(cat kc.txt)
     python benchmarks/probe_ripple_before_position_law.py --against-off-rows A.json B.json     # the docs' table
+
+The ninety-fifth round's rule (``core.RIPPLE_REFINED_WHERE_LAW_FALLS_RULE``: the same refinement, kept only where the
+law is no longer significant given the refined ripple) is probed with ``--rule=where_law_falls`` before OUT.json.
 """
 from __future__ import annotations
 
+import functools
 import os
 import sys
 
@@ -36,7 +40,9 @@ from probe_runner import keys_args, kept_keys, probe_main, run_rule_probe  # noq
 
 from drake_est.diagnose.competition import POSITION_LAWS  # noqa: E402
 
-RULE = "RIPPLE_REFINED_BEFORE_POSITION_LAW_RULE"
+#: ``--rule=NAME``: the round's switch this probe turns on (the ninety-fourth round's unless given)
+RULES = {"before_position_law": "RIPPLE_REFINED_BEFORE_POSITION_LAW_RULE",
+         "where_law_falls": "RIPPLE_REFINED_WHERE_LAW_FALLS_RULE"}
 FUNC = "ripple_refined_before_position_law"
 RIPPLE = "motor_position_ripple"
 #: how many control rows ``--keys control`` draws, and the seed it draws them with
@@ -92,17 +98,23 @@ def _record(got, a, kw):
                        "to": [float(x) for x in new.spec["frequencies_per_arm_rad"]]} for _, old, new in moved]}
 
 
-def run(out_path: str, keys, family: str = "loop") -> dict:
-    """Diagnose the kept logs ``keys`` of ``family`` with the rule on; where it acted, store the rows and the rows of
-    the same logs with the rule off."""
-    return run_rule_probe(out_path, keys, family, rule=RULE, func=FUNC, record=_record, hits_key="refined",
+def run(out_path: str, keys, family: str = "loop", rule: str = "before_position_law") -> dict:
+    """Diagnose the kept logs ``keys`` of ``family`` with the rule ``rule`` (a key of :data:`RULES`) on; where it
+    acted, store the rows and the rows of the same logs with the rule off."""
+    return run_rule_probe(out_path, keys, family, rule=RULES[rule], func=FUNC, record=_record, hits_key="refined",
                           row_class=row_class, compare_off=True)
 
 
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
+    rule = "before_position_law"
+    for a in [a for a in argv if a.startswith("--rule=")]:
+        rule = a.split("=", 1)[1]
+        argv.remove(a)
+        if rule not in RULES:
+            raise SystemExit(f"--rule must be one of {', '.join(RULES)}, got {rule!r}")
     if not against_off_cli(argv):
-        probe_main(argv, __doc__, keys_cli, run)
+        probe_main(argv, __doc__, keys_cli, functools.partial(run, rule=rule))
 
 
 if __name__ == "__main__":
