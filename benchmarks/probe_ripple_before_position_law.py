@@ -13,7 +13,8 @@ round again on the refined model.
 The rule can only act where a law of position is accepted beside a ripple: the kept rows whose ``got`` or set-aside
 list holds both (``--keys touchable``; the set-aside list is stored since closed-loop spec 3700).  ``--keys control``
 draws 100 kept closed-loop rows (seed 94) that name a ripple without a law of position; with ``--family=testbench``
-it lists every open-loop row.
+it lists every open-loop row.  Both select from the kept rows as they stand: once a round's rows are folded they may
+select other keys, and ``--keys examined LANE.json`` gives the keys a lane drew.
 
     python benchmarks/probe_ripple_before_position_law.py --keys touchable > kt.txt
     OPENBLAS_NUM_THREADS=1 python benchmarks/probe_ripple_before_position_law.py OUT.json $(cat kt.txt)
@@ -75,15 +76,31 @@ def control_keys(family: str = "loop", results_dir=None) -> list:
     return sorted(int(k) for k in rng.choice(pool, size=min(CONTROL_ROWS, len(pool)), replace=False))
 
 
+def examined_keys(paths) -> list:
+    """The keys the probe JSONs ``paths`` examined, in order (a lane run again on the keys it drew: the kept rows
+    move when a round's rows are folded, and with them what ``touchable`` and ``control`` select)."""
+    import json
+    keys = []
+    for p in paths:
+        try:
+            keys += json.load(open(p))["keys_examined"]
+        except (OSError, ValueError, KeyError) as e:
+            raise SystemExit(f"--keys examined: {p}: not a probe JSON ({e})")
+    return keys
+
+
 def keys_cli(argv) -> None:
-    """``--keys touchable [--family=F]`` or ``--keys control [--family=F]``: print those keys."""
+    """``--keys touchable [--family=F]``, ``--keys control [--family=F]`` or ``--keys examined JSON...``: print those
+    keys."""
     family, rest = keys_args(argv)
     if rest == ["touchable"]:
         keys = kept_keys(family, touchable)
     elif rest == ["control"]:
         keys = control_keys(family)
+    elif rest[:1] == ["examined"] and len(rest) > 1:
+        keys = examined_keys(rest[1:])
     else:
-        raise SystemExit("--keys: expected 'touchable' or 'control'")
+        raise SystemExit("--keys: expected 'touchable', 'control' or 'examined JSON...'")
     print(" ".join(str(k) for k in keys))
 
 

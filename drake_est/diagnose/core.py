@@ -992,7 +992,7 @@ def backfit_ripple(prep, model, fit, sigma):
 RIPPLE_REFINED_BEFORE_POSITION_LAW_RULE = False
 #: the ninety-fifth round's rule: the ninety-fourth's, acting only where the law just accepted is no longer significant
 #: given the refined ripple (:func:`ripple_refined_before_position_law`)
-RIPPLE_REFINED_WHERE_LAW_FALLS_RULE = False
+RIPPLE_REFINED_WHERE_LAW_FALLS_RULE = True
 
 
 def ripple_refined_before_position_law(prep, model, fit, sigma, ext, alpha=ALPHA, min_gain=MIN_GAIN):
