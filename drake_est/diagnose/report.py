@@ -8,7 +8,7 @@ import numpy as np
 
 from drake_est.data import torque_unit
 from drake_est.diagnose.competition import ambiguous_rivals
-from drake_est.diagnose.nominal import EXTRAPOLATION_FACTOR, OUTLIER_MAX_SHARE, n_blocks_for
+from drake_est.diagnose.nominal import BEYOND_POSITIONS_MARGIN, EXTRAPOLATION_FACTOR, OUTLIER_MAX_SHARE, n_blocks_for
 from drake_est.diagnose.multilog import across_logs_evidence, per_log_table
 
 EFFECT_TEXT = {
@@ -385,6 +385,9 @@ def markdown(d: dict) -> str:
                     "fastest training sample (not judged: the training samples see one speed level, and every model "
                     "extrapolates there)"
                     if c.get("beyond_training_speeds") else "")
+                 + (f", {c['beyond_training_positions']} held-out samples beyond the training positions by more than "
+                    f"{BEYOND_POSITIONS_MARGIN:.3g} of their span (not judged: no law of the position is fitted there)"
+                    if c.get("beyond_training_positions") else "")
                  + "".join(f" (the {when} screen was not applied: it flagged {c[key]} samples, more than "
                            f"{100 * OUTLIER_MAX_SHARE:g} % of the rows, so the tails are misfit, not outliers)"
                            for when, key in (("nominal", "outlier_screen_skipped"),
