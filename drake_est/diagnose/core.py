@@ -3456,8 +3456,9 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
         changed = set(prep.joints) if (ext.shared or model.shared_exts()) else set(ext.cols)
         reshaped = []
         if redone_periodic < PERIODIC_REDOS:
-            # a ripple of the joint refined without the law just accepted (the ninety-fourth round); a move runs the
-            # law's round again on the refined model
+            # a ripple of the joint refined without the law just accepted, kept where the law then falls (the
+            # ninety-fourth and ninety-fifth rounds); a move runs the law's round again on the refined model, so the
+            # backfits wait for the round's next acceptance
             model, fit, moved = ripple_refined_before_position_law(prep, model, fit, sigma, ext, alpha, min_gain)
             for j, old_ext, new_ext in moved:
                 for st in steps:
