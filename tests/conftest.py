@@ -107,6 +107,13 @@ def load_set_aside_as_not_significant(d) -> bool:
                and s.get("reason", "").startswith("not significant given the other findings") for s in d["set_aside"])
 
 
+#: the kept rows the ninety-sixth round folded (its rule-on rows that differ from the rows kept before it,
+#: ``benchmarks/results/diagnose_beyond_training_positions_round96_lane_*.json``): earlier rounds' lanes and screens
+#: were run on the rows as they were, and leave these out where they compare with today's kept rows
+REFOLDED_ROUND_96 = frozenset({1684, 2477, 3107, 3817, 5030, 10021, 10901, 11121, 13615, 20706, 21436, 22759, 25506,
+                               25630, 29576, 32740, 32991, 37427, 37492})
+
+
 def probe_results(pattern: str):
     """(the text of docs/readme/diagnose_testbench.md, [(path, JSON)] of the probe JSONs
     ``benchmarks/results/PATTERN`` in name order, and ``differences(d)``: a probe JSON's rows, their ``kept_json`` and

@@ -44,7 +44,7 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
     """The seventy-fifth round was kept: the switch is on, the docs' table holds the probe JSON's row as
     --against-off-rows prints it, every touchable kept row was examined, no row gained a wrong name, 21549 lost its,
     missed effects went down, and every row where the rule fired is now the kept row of its log (folded)."""
-    from conftest import bench_module, probe_results
+    from conftest import REFOLDED_ROUND_96, bench_module, probe_results
     assert core.INERTIA_BACKFIT_KEEPS_SIGN is True
     probe = bench_module("probe_inertia_backfit_sign")
     doc, files, differences = probe_results("diagnose_inertia_backfit_sign_round75_*.json")
@@ -60,7 +60,8 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
         gained_miss += s["missed_on"] - s["missed_off"]
         lost += s["wrong_lost"]
         examined |= set(d["keys_examined"])
-        assert differences(d) == [], f.name
+        # (rows the ninety-sixth round refolded left out: REFOLDED_ROUND_96)
+        assert [x for x in differences(d) if x["k"] not in REFOLDED_ROUND_96] == [], f.name
     assert lost == [21549] and gained_miss <= 0
     # lane a: every kept row that records a move through zero (the folded rows record none any more); lane b: the
     # crossings the screens of the rows without the record found, but those lane a had examined

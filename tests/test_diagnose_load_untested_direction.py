@@ -105,7 +105,11 @@ def test_kept_and_its_table_is_its_jsons():
                for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h")}
     loop = [k for x in "01cdefgh" for k in screens[x]["keys_screened"]]
     # (37278 was screened before the ninety-fifth round's fold took its load away)
-    assert sorted(set(loop) - {37278}) == probe.candidate_keys("loop") and len(set(loop)) == len(loop)
+    # (and the ninety-sixth round's fold made some rows name a load: REFOLDED_ROUND_96)
+    from conftest import REFOLDED_ROUND_96
+    assert sorted(set(loop) - {37278} - REFOLDED_ROUND_96) == [k for k in probe.candidate_keys("loop")
+                                                              if k not in REFOLDED_ROUND_96]
+    assert len(set(loop)) == len(loop)
     assert len(loop) - sum(len(screens[x]["keys_screened"]) for x in "cdefgh") == 9494
     assert max(screens["0"]["keys_screened"]) < 36000
     # the fresh blocks' screens c-h: (size, first spec of the blocks); d-h list no log

@@ -130,7 +130,10 @@ def test_kept_and_its_table_is_its_jsons():
                for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j", "k", "l", "m", "n")]
     loop = [k for d in screens[:2] for k in d["keys_screened"]]
     assert len(loop) == 8347 and max(loop) < 34000
-    assert sorted(loop + [k for d in screens[3:] for k in d["keys_screened"]]) == probe.candidate_keys("loop")
+    # (rows the ninety-sixth round refolded may have entered or left the candidates: REFOLDED_ROUND_96)
+    from conftest import REFOLDED_ROUND_96
+    assert sorted(k for k in loop + [k for d in screens[3:] for k in d["keys_screened"]]
+                  if k not in REFOLDED_ROUND_96) == [k for k in probe.candidate_keys("loop") if k not in REFOLDED_ROUND_96]
     # the fresh blocks' screens c-l: (size, first spec of the blocks)
     assert_fresh_screens(zip(screens[3:], (97, 100, 51, 101, 50, 97, 97, 100, 94, 52, 53, 92),
                              (34000, 34400, 34800, 35000, 35400, 35600, 36000, 36400, 36800, 37200,

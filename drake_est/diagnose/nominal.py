@@ -50,7 +50,7 @@ EXTRAPOLATION_FACTOR = 1.5
 ONE_LEVEL_SPREAD = 2.0
 #: the ninety-sixth round's rule (:func:`beyond_training_positions`): held-out rows at positions the training rows
 #: never visit, beyond a margin, are not used to judge a model
-BEYOND_TRAINING_POSITIONS_RULE = False
+BEYOND_TRAINING_POSITIONS_RULE = True
 #: that margin, as a share of the span of the training positions: one kernel width of the coarsest position law
 #: (8 Gaussian kernels over the span, :data:`~drake_est.diagnose.detectors.BFE_SIZES`)
 BEYOND_POSITIONS_MARGIN = 1.0 / 7.0

@@ -1,0 +1,103 @@
+"""The ninety-sixth round: held-out rows beyond the training positions by more than one coarsest kernel width are not
+used to judge a model (``nominal.BEYOND_TRAINING_POSITIONS_RULE``;
+``benchmarks/results/diagnose_beyond_training_positions_round96_rule.txt``)."""
+import numpy as np
+import pytest
+
+from drake_est.diagnose import nominal
+from drake_est.diagnose.report import markdown
+
+
+def test_only_held_out_rows_beyond_the_margin():
+    """Training positions 0-7: the margin is 1; held-out rows below -1 or above 8 are flagged, training rows and
+    held-out rows within the margin never; no training rows, nothing flagged."""
+    q = np.array([0.0, 7.0, 3.0, -0.5, -1.5, 8.5, 7.9, 20.0, -3.0])
+    train = np.array([True, True, True, False, False, False, False, True, False])
+    train[7] = False        # 20.0 held out
+    got = nominal.beyond_training_positions(q, train)
+    assert got.tolist() == [False, False, False, False, True, True, False, True, True]
+    assert nominal.beyond_training_positions(q, train, margin=0.0).tolist() == [
+        False, False, False, True, True, True, True, True, True]
+    assert not nominal.beyond_training_positions(q, np.zeros(q.size, bool)).any()
+    assert nominal.BEYOND_POSITIONS_MARGIN == pytest.approx(1 / 7)
+
+
+@pytest.fixture(scope="module")
+def design_case():
+    """Fresh spec 37492 (a load at 10 Hz with Student-t noise) prepared and diagnosed with the switch off and on:
+    (module, spec, truth, {False: (prep, report), True: (prep, report)})."""
+    from conftest import closed_loop_case
+    from drake_est.diagnose import diagnose
+    from drake_est.diagnose.nominal import prepare
+    mod, spec, log, truth = closed_loop_case(37492)
+    mp = pytest.MonkeyPatch()
+    out = {}
+    try:
+        for on in (False, True):
+            mp.setattr(nominal, "BEYOND_TRAINING_POSITIONS_RULE", on)
+            rep = diagnose(log, robot="generic", seed=0, simulate=False)
+            out[on] = (prepare(log, robot="generic"), rep)
+    finally:
+        mp.undo()
+    return mod, spec, truth, out
+
+
+def test_spec_37492_names_the_load(design_case):
+    """Off: an abrupt change is named (a wrong name) and every held-out row is kept. On: the 9 held-out rows beyond
+    the margin are dropped, counted in report.json and said in report.md, and the load is named, ambiguous with the
+    change and the level."""
+    mod, spec, truth, out = design_case
+    assert truth["planted"] == ["position_dependent_load"]
+    (p_off, r_off), (p_on, r_on) = out[False], out[True]
+    assert mod.judge(spec, r_off.to_dict())["wrong"] == ["abrupt_change"]
+    assert "beyond_training_positions" not in p_off.joints[1].counts
+    assert p_on.joints[1].counts["beyond_training_positions"] == 9
+    assert p_off.joints[1].val.sum() - p_on.joints[1].val.sum() == 9
+    assert p_off.joints[1].train.sum() == p_on.joints[1].train.sum()
+    d = r_on.to_dict()
+    j = mod.judge(spec, d)
+    assert j["wrong"] == [] and j["missed"] == [] and j["correct"]
+    assert d["data"]["excluded"]["1"]["beyond_training_positions"] == 9
+    assert "9 held-out samples beyond the training positions" in markdown(d)
+
+
+def test_kept_and_its_table_is_its_jsons():
+    """Kept: the switch is on; the screens ran on every 10th kept closed-loop row (screens 0 and 1: the keys
+    ``--keys every 10`` gives below 38000), every open-loop row (none listed) and the 598 kept rows of the fresh blocks
+    37400-37999 (screens c and d); the lanes diagnosed every listed log (a and b: the sample's 90, c: 37492, d and e:
+    the fresh blocks' other 18, f: the design logs 21436 and 25506 of two earlier tests); no wrong name gained, 37492's
+    lost, the missed effects fell from 8 to 3, six rows no
+    longer name every planted effect outright; the rule-on rows are the kept rows (folded)."""
+    import json
+    from pathlib import Path
+    from conftest import bench_module, probe_lanes, probe_results
+    assert nominal.BEYOND_TRAINING_POSITIONS_RULE is True
+    probe = bench_module("probe_beyond_training_positions")
+    root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+    screens = {x: json.loads((root / f"diagnose_beyond_training_positions_round96_screen_{x}.json").read_text())
+               for x in ("0", "1", "testbench", "c", "d")}
+    sample = sorted(k for x in "01" for k in screens[x]["keys_screened"])
+    # drawn when the kept rows ended at 37799 (blocks appended later do not move the earlier picks)
+    assert sample == [k for k in probe.every_keys(10, "loop") if k < 37800] and len(sample) == 3775
+    assert screens["testbench"]["keys_screened"] == probe.kept_keys("testbench", lambda r: True)
+    assert screens["testbench"]["touched"] == [] and not any(s["refused"] for s in screens.values())
+    fresh = sorted(k for x in "cd" for k in screens[x]["keys_screened"])
+    assert len(fresh) == 598 and min(fresh) == 37400 and max(fresh) < 38000
+    listed = probe.screened_keys([root / f"diagnose_beyond_training_positions_round96_screen_{x}.json" for x in "01"])
+    listed_fresh = probe.screened_keys([root / f"diagnose_beyond_training_positions_round96_screen_{x}.json"
+                                        for x in "cd"])
+    assert len(listed) == 90 and len(listed_fresh) == 19 and 37492 in listed_fresh
+    doc, files, examined, s = probe_lanes(probe, "diagnose_beyond_training_positions_round96_lane_*.json",
+                                          lanes="abcdef")
+    keys = [d["keys_examined"] for _, d in files]
+    assert sorted(keys[0] + keys[1]) == listed and keys[2] == [37492]
+    assert sorted(keys[3] + keys[4]) == [k for k in listed_fresh if k != 37492] and keys[5] == [21436, 25506]
+    assert s["fired"] == s["examined"] == 111
+    assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == []
+    assert s["wrong_lost"] == [37492] and (s["missed_off"], s["missed_on"]) == (8, 3)
+    assert sorted(s["outright_lost"]) == [1684, 2477, 3817, 5030, 11121, 29576]
+    assert s["off_differs_from_kept_row"] == [3137, 25630, 25506]
+    _, _, differences = probe_results("diagnose_beyond_training_positions_round96_lane_*.json")
+    for f, d in files:
+        assert differences(d) == [], f.name
+    assert "The rule dropped rows in all 111 logs examined" in " ".join(doc.split())
