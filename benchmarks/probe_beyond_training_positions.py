@@ -65,7 +65,7 @@ def keys_cli(argv) -> None:
 
 def rows_beyond_positions(family: str, spec: dict) -> dict:
     """{joint: held-out rows beyond its training positions by more than the margin} of the log of ``spec`` (of
-    ``family``) as prepared for its kept row (no diagnosis; the closed-loop log generated without its visibility
+    ``family``), counted by ``prepare`` with the rule on and found on its rows with it off, as prepared for its kept row (no diagnosis; the closed-loop log generated without its visibility
     check, which changes nothing in the log); joints without such rows left out, ``{"refused": message}`` when
     preparation refuses it."""
     from drake_est.diagnose.nominal import beyond_training_positions, prepare
@@ -77,7 +77,9 @@ def rows_beyond_positions(family: str, spec: dict) -> dict:
         return {"refused": str(e)}
     out = {}
     for j, jd in prep.joints.items():
-        n = int(beyond_training_positions(jd.q[jd.rows], jd.train).sum())
+        # with the rule on, prepare has dropped them already and counted them
+        n = int(jd.counts.get("beyond_training_positions", 0)
+                or beyond_training_positions(jd.q[jd.rows], jd.train).sum())
         if n:
             out[str(j)] = n
     return out

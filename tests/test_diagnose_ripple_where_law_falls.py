@@ -99,14 +99,14 @@ def test_spec_16004_why_the_ninety_fourth_round_was_not_kept():
 def test_kept_and_its_tables_are_its_jsons():
     """The ninety-fourth round: off; its lanes (a: the 92 touchable closed-loop rows below the fresh blocks 37400-37599,
     b: all 150 open-loop rows, c: the 100 control rows) gained 16004 a wrong name.  The ninety-fifth: on; it reran lanes
-    a and c (and d: the two touchable fresh rows), acted only in logs where the ninety-fourth fired, mended 37278 and
+    a and c (and d: the two touchable fresh rows of 37400-37599; e: 38047 of 38000-38199), acted only in logs where the ninety-fourth fired, mended 37278 and
     lost nothing; its rule-on rows are the kept rows (folded)."""
     from conftest import bench_module, probe_lanes, probe_results
     assert core.RIPPLE_REFINED_BEFORE_POSITION_LAW_RULE is False
     assert core.RIPPLE_REFINED_WHERE_LAW_FALLS_RULE is True
     probe = bench_module("probe_ripple_before_position_law")
     doc94, f94, ex94, s94 = probe_lanes(probe, "diagnose_ripple_before_position_law_round94_lane_*.json", lanes="abc")
-    doc95, f95, ex95, s95 = probe_lanes(probe, "diagnose_ripple_where_law_falls_round95_lane_*.json", lanes="acd")
+    doc95, f95, ex95, s95 = probe_lanes(probe, "diagnose_ripple_where_law_falls_round95_lane_*.json", lanes="acde")
     # drawn before the fold, which took 6346 and 37278 out of the touchable rows (6346 is now a control row)
     touchable = probe.kept_keys("loop", probe.touchable)
     lane_a, lane_c = f94[0][1]["keys_examined"], f94[2][1]["keys_examined"]
@@ -115,7 +115,8 @@ def test_kept_and_its_tables_are_its_jsons():
     kept = {k: r for (f, _, k), (_, r) in bench_module("bench_diagnose_testbench").kept_rows_naming("any").items()
             if f == "loop"}
     assert all(probe.control(kept[k]) for k in lane_c) and not set(lane_c) & set(lane_a)
-    assert f95[2][1]["keys_examined"] == [k for k in touchable if k >= 37400] == [37453, 37564]
+    assert f95[2][1]["keys_examined"] == [k for k in touchable if 37400 <= k < 38000] == [37453, 37564]
+    assert f95[3][1]["keys_examined"] == [k for k in touchable if k >= 38000] == [38047]
     assert probe.examined_keys([f for f, _ in f94[:1]]) == lane_a
     assert len(ex94["testbench"]) == 150 and [t for t in f94[1][1]["touched"]] == []
     assert s94["wrong_gained"] == [16004] and s94["wrong_lost"] == [37278]
