@@ -75,7 +75,7 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_beyond_training_positions")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = {x: json.loads((root / f"diagnose_beyond_training_positions_round96_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d", "e", "f")}
+               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h")}
     sample = sorted(k for x in "01" for k in screens[x]["keys_screened"])
     # drawn when the kept rows ended at 37799 (blocks appended later do not move the earlier picks)
     assert sample == [k for k in probe.every_keys(10, "loop") if k < 37800] and len(sample) == 3775
@@ -88,7 +88,7 @@ def test_kept_and_its_table_is_its_jsons():
                                         for x in "cd"])
     assert len(listed) == 90 and len(listed_fresh) == 19 and 37492 in listed_fresh
     doc, files, examined, s = probe_lanes(probe, "diagnose_beyond_training_positions_round96_lane_*.json",
-                                          lanes="abcdefg")
+                                          lanes="abcdefgh")
     keys = [d["keys_examined"] for _, d in files]
     assert sorted(keys[0] + keys[1]) == listed and keys[2] == [37492]
     assert sorted(keys[3] + keys[4]) == [k for k in listed_fresh if k != 37492] and keys[5] == [21436, 25506]
@@ -96,7 +96,11 @@ def test_kept_and_its_table_is_its_jsons():
     assert len(fresh2) == 200 and min(fresh2) == 38000 and max(fresh2) < 38200
     assert keys[6] == probe.screened_keys([root / f"diagnose_beyond_training_positions_round96_screen_{x}.json"
                                            for x in "ef"]) == [38002, 38051, 38066, 38098, 38156, 38168, 38171]
-    assert s["fired"] == s["examined"] == 118
+    fresh3 = sorted(k for x in "gh" for k in screens[x]["keys_screened"])
+    assert len(fresh3) == 200 and min(fresh3) == 38200 and max(fresh3) < 38400
+    assert keys[7] == probe.screened_keys([root / f"diagnose_beyond_training_positions_round96_screen_{x}.json"
+                                           for x in "gh"]) and len(keys[7]) == 8
+    assert s["fired"] == s["examined"] == 126
     assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == []
     assert s["wrong_lost"] == [37492] and (s["missed_off"], s["missed_on"]) == (8, 3)
     assert sorted(s["outright_lost"]) == [1684, 2477, 3817, 5030, 11121, 29576]

@@ -93,8 +93,8 @@ def test_kept_and_its_table_is_its_jsons():
     the 23 open-loop rows, none; screen c: the 109 of 36000-36399, one; screen d: the 107 of 36400-36799, none;
     screen e: the 104 of 36800-37199, none; screen f: the 51 of 37200-37399, none; screen g: the 52 of
     37400-37599, none; screen h: the 105 of 37600-37999, none; screen i: the 53 of
-    38000-38199, none); the probe every screened log
-    (lanes a and b, alternate keys; c); the rule marked a load in the design log only, which lost its wrong name, and
+    38000-38199, none; screen j: the 54 of 38200-38399, one); the probe every screened log
+    (lanes a and b, alternate keys; c; d); the rule marked a load in the design log only, which lost its wrong name, and
     nothing was lost; the docs' table holds each lane's row as --against-off-rows prints it."""
     import json
     from pathlib import Path
@@ -103,27 +103,28 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_load_untested_direction")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = {x: json.loads((root / f"diagnose_load_untested_direction_round93_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i")}
-    loop = [k for x in "01cdefghi" for k in screens[x]["keys_screened"]]
+               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j")}
+    loop = [k for x in "01cdefghij" for k in screens[x]["keys_screened"]]
     # (37278 was screened before the ninety-fifth round's fold took its load away)
     # (and the ninety-sixth round's fold made some rows name a load: REFOLDED_ROUND_96)
     from conftest import REFOLDED_ROUND_96
     assert sorted(set(loop) - {37278} - REFOLDED_ROUND_96) == [k for k in probe.candidate_keys("loop")
                                                               if k not in REFOLDED_ROUND_96]
     assert len(set(loop)) == len(loop)
-    assert len(loop) - sum(len(screens[x]["keys_screened"]) for x in "cdefghi") == 9494
+    assert len(loop) - sum(len(screens[x]["keys_screened"]) for x in "cdefghij") == 9494
     assert max(screens["0"]["keys_screened"]) < 36000
-    # the fresh blocks' screens c-i: (size, first spec of the blocks); d-i list no log
-    assert_fresh_screens(zip((screens[x] for x in "cdefg"), (109, 107, 104, 51, 52, 105, 53),
-                             (36000, 36400, 36800, 37200, 37400, 37600, 38000)))
+    # the fresh blocks' screens c-j: (size, first spec of the blocks); d-i list no log, j lists 38332
+    assert_fresh_screens(zip((screens[x] for x in "cdefg"), (109, 107, 104, 51, 52, 105, 53, 54),
+                             (36000, 36400, 36800, 37200, 37400, 37600, 38000, 38200)))
     assert all(screens[x]["touched"] == [] for x in "defghi")
+    assert [k for k, _ in screens["j"]["touched"]] == [38332]
     assert screens["testbench"]["keys_screened"] == probe.candidate_keys("testbench")
     assert len(screens["testbench"]["keys_screened"]) == 23 and screens["testbench"]["touched"] == []
-    assert [k for x in "01cdefghi" for k, _ in screens[x]["refused"]] == [17787]
-    listed = probe.screened_keys([root / f"diagnose_load_untested_direction_round93_screen_{x}.json" for x in "01cdefghi"])
-    assert len(listed) == 67 and 35997 in listed
-    doc, files, examined, s = probe_lanes(probe, "diagnose_load_untested_direction_round93_lane_*.json", lanes="abc")
-    assert [len(d["keys_examined"]) for _, d in files] == [33, 33, 1]
+    assert [k for x in "01cdefghij" for k, _ in screens[x]["refused"]] == [17787]
+    listed = probe.screened_keys([root / f"diagnose_load_untested_direction_round93_screen_{x}.json" for x in "01cdefghij"])
+    assert len(listed) == 68 and 35997 in listed
+    doc, files, examined, s = probe_lanes(probe, "diagnose_load_untested_direction_round93_lane_*.json", lanes="abcd")
+    assert [len(d["keys_examined"]) for _, d in files] == [33, 33, 1, 1]
     assert sorted(examined["loop"]) == listed and not examined["testbench"]
     assert_rule_mended_only("diagnose_load_untested_direction_round93_lane_*.json", files, s, 35997)
-    assert "It marked a load in one log of 67" in " ".join(doc.split())
+    assert "It marked a load in one log of 68" in " ".join(doc.split())
