@@ -26,11 +26,10 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-import bench_diagnose_testbench as B  # noqa: E402
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
 from probe_runner import keys_args, kept_keys, probe_main, run_rule_probe  # noqa: E402
-from probe_state_check_speeds import screen_cli, screened_keys  # noqa: E402,F401
+from probe_state_check_speeds import per_joint_of_prepared, screen_cli, screened_keys  # noqa: E402,F401
 
 RULE = "BEYOND_TRAINING_POSITIONS_RULE"
 FUNC = "beyond_training_positions"
@@ -67,22 +66,12 @@ def rows_beyond_positions(family: str, spec: dict) -> dict:
     """{joint: held-out rows beyond its training positions by more than the margin} of the log of ``spec`` (of
     ``family``), counted by ``prepare`` with the rule on and found on its rows with it off, as prepared for its kept row (no diagnosis; the closed-loop log generated without its visibility
     check, which changes nothing in the log); joints without such rows left out, ``{"refused": message}`` when
-    preparation refuses it."""
-    from drake_est.diagnose.nominal import beyond_training_positions, prepare
-    from drake_est.errors import DataError
-    log = B.loop_log(spec, check_visible=False)[0] if family == "loop" else B.family_log(family, spec)[0]
-    try:
-        prep = prepare(log, robot="generic")
-    except DataError as e:
-        return {"refused": str(e)}
-    out = {}
-    for j, jd in prep.joints.items():
-        # with the rule on, prepare has dropped them already and counted them
-        n = int(jd.counts.get("beyond_training_positions", 0)
-                or beyond_training_positions(jd.q[jd.rows], jd.train).sum())
-        if n:
-            out[str(j)] = n
-    return out
+    preparation refuses it (:func:`probe_state_check_speeds.per_joint_of_prepared`)."""
+    from drake_est.diagnose.nominal import beyond_training_positions
+    # with the rule on, prepare has dropped them already and counted them
+    return per_joint_of_prepared(family, spec, lambda jd: int(
+        jd.counts.get("beyond_training_positions", 0)
+        or beyond_training_positions(jd.q[jd.rows], jd.train).sum()) or None)
 
 
 def _record(got, a, kw):

@@ -29,7 +29,6 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-import bench_diagnose_testbench as B  # noqa: E402
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
 import probe_state_check_speeds  # noqa: E402
@@ -55,21 +54,15 @@ def untested_direction_rows(family: str, spec: dict) -> dict:
     """{joint: [its rare direction's selected training samples, all selected training samples, its rare direction's
     held-out rows]} of the joints of the log of ``spec`` (of ``family``), as prepared for its kept row (no diagnosis),
     whose asymmetric level is untestable (``core.untested_direction``) and whose rare direction has held-out rows;
-    ``{"refused": message}`` when preparation refuses the log."""
+    ``{"refused": message}`` when preparation refuses the log (:func:`probe_state_check_speeds.per_joint_of_prepared`)."""
     from drake_est.diagnose.core import untested_direction
-    from drake_est.diagnose.nominal import prepare
-    from drake_est.errors import DataError
-    log = B.loop_log(spec, check_visible=False)[0] if family == "loop" else B.family_log(family, spec)[0]
-    try:
-        prep = prepare(log, robot="generic")
-    except DataError as e:
-        return {"refused": str(e)}
-    out = {}
-    for j, jd in prep.joints.items():
+
+    def rows(jd):
         way = untested_direction(jd)
         if way is not None and way[1].any():
-            out[str(j)] = [int(way[2]), int(way[3]), int(way[1].sum())]
-    return out
+            return [int(way[2]), int(way[3]), int(way[1].sum())]
+        return None
+    return probe_state_check_speeds.per_joint_of_prepared(family, spec, rows)
 
 
 #: ``--keys candidates`` / ``--keys screened S.json ...``, as the ninety-first round's probe reads them

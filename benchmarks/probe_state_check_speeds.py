@@ -54,11 +54,12 @@ def candidate_keys(family: str = "loop", results_dir=None) -> list:
     return kept_keys(family, lambda r: candidate(r, family), results_dir)
 
 
-def fast_held_out_rows(family: str, spec: dict) -> dict:
-    """{joint: held-out rows faster than 1.5 times its fastest training row} of the log of ``spec`` (of ``family``) as
-    prepared for its kept row (no diagnosis; the closed-loop log generated without its visibility check, which changes
-    nothing in the log); joints without such rows left out, ``{"refused": message}`` when preparation refuses it."""
-    from drake_est.diagnose.nominal import faster_than_training, prepare
+def per_joint_of_prepared(family: str, spec: dict, per_joint) -> dict:
+    """{joint: ``per_joint(jd)``} over the joints of the log of ``spec`` (of ``family``) as prepared for its kept row
+    (no diagnosis; the closed-loop log generated without its visibility check, which changes nothing in the log);
+    joints where it returns None left out, ``{"refused": message}`` when preparation refuses the log.  The screens'
+    common part (also those of the ninety-third and ninety-sixth rounds)."""
+    from drake_est.diagnose.nominal import prepare
     from drake_est.errors import DataError
     log = B.loop_log(spec, check_visible=False)[0] if family == "loop" else B.family_log(family, spec)[0]
     try:
@@ -67,10 +68,18 @@ def fast_held_out_rows(family: str, spec: dict) -> dict:
         return {"refused": str(e)}
     out = {}
     for j, jd in prep.joints.items():
-        n = int(faster_than_training(jd.v[jd.rows], jd.train).sum())
-        if n:
-            out[str(j)] = n
+        got = per_joint(jd)
+        if got is not None:
+            out[str(j)] = got
     return out
+
+
+def fast_held_out_rows(family: str, spec: dict) -> dict:
+    """{joint: held-out rows faster than 1.5 times its fastest training row} of the log of ``spec`` (of ``family``)
+    (:func:`per_joint_of_prepared`); joints without such rows left out."""
+    from drake_est.diagnose.nominal import faster_than_training
+    return per_joint_of_prepared(family, spec,
+                                 lambda jd: int(faster_than_training(jd.v[jd.rows], jd.train).sum()) or None)
 
 
 def screen(out_path: str, keys, family: str = "loop", lane: str = "0/1", measure=None, what: str = FAST,

@@ -3395,6 +3395,16 @@ def pair_rescue(prep, model, fit, sigma, results, alpha, min_gain):
     return None
 
 
+def _moved_into_steps(steps, moved) -> set:
+    """Point the search's ``steps`` at the new extensions of ``moved`` ((joint, old, new) of a backfit or a
+    refinement); returns the joints that moved."""
+    for _, old_ext, new_ext in moved:
+        for st in steps:
+            if st.ext is old_ext:
+                st.ext = new_ext
+    return {j for j, _, _ in moved}
+
+
 def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
     """Forward search: from the nominal model, add the best significant candidate of each round (competitions,
     backfits of change times, Stribeck shapes, disturbance and ripple frequencies; the round run again once after the
@@ -3460,11 +3470,7 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
             # ninety-fourth and ninety-fifth rounds); a move runs the law's round again on the refined model, so the
             # backfits wait for the round's next acceptance
             model, fit, moved = ripple_refined_before_position_law(prep, model, fit, sigma, ext, alpha, min_gain)
-            for j, old_ext, new_ext in moved:
-                for st in steps:
-                    if st.ext is old_ext:
-                        st.ext = new_ext
-                changed |= {j}
+            changed |= _moved_into_steps(steps, moved)
             reshaped += moved
         backfits = [(effect, backfit) for effect, backfit in (
             ("abrupt_change", backfit_changes), ("stribeck", backfit_stribeck),
@@ -3485,11 +3491,7 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
                 model, fit, moved = early
             else:
                 model, fit, moved = backfit(prep, model, fit, sigma)
-            for j, old_ext, new_ext in moved:
-                for st in steps:
-                    if st.ext is old_ext:
-                        st.ext = new_ext
-                changed |= {j}
+            changed |= _moved_into_steps(steps, moved)
             if effect != "abrupt_change":
                 # a new shape or frequency may have other columns than the old: refit the steps (below)
                 reshaped += moved
