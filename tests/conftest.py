@@ -107,11 +107,29 @@ def load_set_aside_as_not_significant(d) -> bool:
                and s.get("reason", "").startswith("not significant given the other findings") for s in d["set_aside"])
 
 
-#: the kept rows the ninety-sixth round folded (its rule-on rows that differ from the rows kept before it,
-#: ``benchmarks/results/diagnose_beyond_training_positions_round96_lane_*.json``): earlier rounds' lanes and screens
-#: were run on the rows as they were, and leave these out where they compare with today's kept rows
-REFOLDED_ROUND_96 = frozenset({1684, 2477, 3107, 3817, 5030, 10021, 10901, 11121, 13615, 20706, 21436, 22759, 25506,
-                               25630, 29576, 32740, 32991, 37427, 37492})
+def refolded_rows(pattern: str, rows: str = "rows") -> frozenset:
+    """The keys whose rows a rule probe's JSONs ``benchmarks/results/PATTERN`` folded: its ``rows`` (the rule-on rows;
+    ``rows_off``: the rule-off rows) that differ from the rows kept before it (each rule-on row's ``kept_row``,
+    :func:`bench_diagnose_testbench.row_differences`)."""
+    import json
+    bench = bench_module("bench_diagnose_testbench")
+    out = set()
+    for f in sorted((Path(__file__).resolve().parents[1] / "benchmarks" / "results").glob(pattern)):
+        d = json.loads(f.read_text())
+        before = {r["k"]: (r["kept_json"], r["kept_row"]) for r in d["rows"]}
+        for r in d[rows]:
+            kept = {(r["family"], r["robot"], r["k"]): before[r["k"]]}
+            if bench.row_differences(kept, [{a: b for a, b in r.items() if a not in ("kept_json", "kept_row")}]):
+                out.add(r["k"])
+    return frozenset(out)
+
+
+#: the kept rows the ninety-sixth round folded (its rule-on rows that differ from the rows kept before it, lanes a-h
+#: of ``benchmarks/results/diagnose_beyond_training_positions_round96_lane_*.json``) and those it folded back when its
+#: switch went off (its rule-off rows that differ from the rows kept before them, every lane): earlier rounds' lanes
+#: and screens were run on the rows as they were, and leave these out where they compare with today's kept rows
+REFOLDED_ROUND_96 = (refolded_rows("diagnose_beyond_training_positions_round96_lane_[a-h].json")
+                     | refolded_rows("diagnose_beyond_training_positions_round96_lane_*.json", "rows_off"))
 
 
 def probe_results(pattern: str):

@@ -13,17 +13,9 @@ def load_beside_stribeck():
     # loop spec 21436: a spring-like load beside a Gaussian Stribeck law at 10 Hz; the joint moves forward at negative
     # positions and back at positive ones, so the direction is a function of the position and the level (a constant
     # torque while moving) takes the load's mean; neither planted law wins a round alone
-    # (prepared as before the ninety-sixth round: with its 6 held-out rows beyond the training positions left out, the
-    # round itself finds the level and the load within 2 % of each other, and this check is not reached)
-    from drake_est.diagnose import nominal
     _, _, log, truth = closed_loop_case(21436)
     assert sorted(truth["effects"]) == ["position_dependent_load", "stribeck"]
-    mp = pytest.MonkeyPatch()
-    try:
-        mp.setattr(nominal, "BEYOND_TRAINING_POSITIONS_RULE", False)
-        return diagnose(log, robot="generic", seed=0, simulate=False), truth
-    finally:
-        mp.undo()
+    return diagnose(log, robot="generic", seed=0, simulate=False), truth
 
 
 def test_the_level_is_ambiguous_with_the_load(load_beside_stribeck):

@@ -14,17 +14,12 @@ def _velocity_entry(j=1):
     return [{"joint": j, "variable": "velocity"}]
 
 
-def test_a_position_friction_beside_a_stribeck_law_is_not_named_outright(monkeypatch):
+def test_a_position_friction_beside_a_stribeck_law_is_not_named_outright():
     # loop spec 25506 (a load beside Stribeck at 10 Hz, Student-t noise): a position friction was named outright beside
     # a level ambiguous with Stribeck and the load; the speed curve in its place is not separated (paired p = 0.071).
-    # Since the ninety-sixth round the 6 held-out rows beyond its training positions are not judged, and the load and
-    # Stribeck are named outright; the mark is tested on the log as prepared before that round
-    from drake_est.diagnose import nominal
+    # (The ninety-sixth round, switched off, named the load and Stribeck outright here: it left out the 6 held-out rows
+    # beyond the training positions)
     mod, spec, log, _ = closed_loop_case(25506)
-    now = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
-    assert mod.judge(spec, now)["correct"] and sorted(f["effect"] for f in now["findings"]) == [
-        "position_dependent_load", "stribeck"]
-    monkeypatch.setattr(nominal, "BEYOND_TRAINING_POSITIONS_RULE", False)
     d = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
     assert mod.judge(spec, d)["wrong"] == [], d["findings"]
     for f in d["findings"]:
@@ -128,7 +123,8 @@ def test_the_rule_is_on_and_its_table_is_its_jsons():
         examined += s["examined"]
         # rows folded again by later rounds: 13530 by the seventy-fourth (a load kept in its check: a second ambiguous
         # finding, still correct), 8965 by the seventy-fifth (J kept positive: Stribeck named outright)
-        # (7975's kept row was refolded by the ninetieth round, 25506's by the ninety-sixth)
+        # (7975's kept row was refolded by the ninetieth round, 25506's by the ninety-sixth: its rule-off row on an
+        # Intel Xeon)
         assert [x["k"] for x in differences(d)] == ([8965, 13530] if f.name.endswith("_lane_a.json") else
                                                      [7975, 25506] if f.name.endswith("_lane_b.json") else []), f.name
     assert sorted(lost) == [19899, 25506]

@@ -94,7 +94,9 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_set_aside_time_law")
     doc, files, examined, s = probe_lanes(probe, "diagnose_set_aside_time_law_round92_lane_*.json", lanes="abcd")
     assert [len(d["keys_examined"]) for _, d in files] == [16, 150, 1, 1]
-    assert set(probe.touchable_keys("loop")) <= examined["loop"] and 35738 in examined["loop"]
+    # (30544, whose stale kept row the ninety-sixth round folded back to today's, became touchable then: REFOLDED_ROUND_96)
+    from conftest import REFOLDED_ROUND_96
+    assert set(probe.touchable_keys("loop")) - REFOLDED_ROUND_96 <= examined["loop"] and 35738 in examined["loop"]
     assert len(examined["testbench"]) == 150
     assert_rule_mended_only("diagnose_set_aside_time_law_round92_lane_*.json", files, s, 35738)
     assert "It acted in one log of 168" in " ".join(doc.split())

@@ -49,8 +49,10 @@ EXTRAPOLATION_FACTOR = 1.5
 #: training speeds whose 95th and 5th percentiles of |qd| lie within this ratio are one speed level
 ONE_LEVEL_SPREAD = 2.0
 #: the ninety-sixth round's rule (:func:`beyond_training_positions`): held-out rows at positions the training rows
-#: never visit, beyond a margin, are not used to judge a model
-BEYOND_TRAINING_POSITIONS_RULE = True
+#: never visit, beyond a margin, are not used to judge a model.  Off: kept on a sample, it failed its rule file's
+#: conditions once every kept row was screened (loop spec 5586, an elastic gear at 1000 Hz, gains a wrong name: the
+#: dropped rows had kept a spurious position load from the held-out blocks; docs/readme/diagnose_testbench.md)
+BEYOND_TRAINING_POSITIONS_RULE = False
 #: that margin, as a share of the span of the training positions: one kernel width of the coarsest position law
 #: (8 Gaussian kernels over the span, :data:`~drake_est.diagnose.detectors.BFE_SIZES`)
 BEYOND_POSITIONS_MARGIN = 1.0 / 7.0
