@@ -28,7 +28,7 @@ from pathlib import Path
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
+from probe_held_back_rival import against_off, against_off_cli, against_off_of, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402
 from probe_runner import keys_args, probe_main, run_rule_probe  # noqa: E402
 
@@ -84,7 +84,7 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 def against_kept(paths, results_dir=None) -> dict:
     """The round judged against the kept rows (both rules off) over every log the probes ``paths`` examined: a log
     where the guard fired gets its probe row, any other its ninety-sixth round's rule-on lane row; its rule-off lane
-    row stands for both rules off.  The same keys as :func:`probe_held_back_rival.against_off`, computed on those
+    row stands for both rules off.  The same keys as :func:`probe_held_back_rival.against_off_of`, computed on those
     pairs (``fired``: every log examined)."""
     on, off = {}, {}
     for _, d in round96_lanes(results_dir):
@@ -102,14 +102,7 @@ def against_kept(paths, results_dir=None) -> dict:
     if missing:
         raise SystemExit(f"no ninety-sixth round lane row for k = {missing[0]} ({len(missing)} such)")
     rows = [{**(fired_rows.get(k) or on[k]), "kept_row": off[k]} for k in examined]
-    tmp = {"examined": len(examined), "rows": rows, "rows_off": [off[k] for k in examined]}
-    import tempfile
-    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
-        json.dump(tmp, f)
-    try:
-        out = against_off([f.name])
-    finally:
-        os.unlink(f.name)
+    out = against_off_of([{"examined": len(examined), "rows": rows, "rows_off": [off[k] for k in examined]}])
     out["guard_fired"] = sorted(fired_rows)
     return out
 

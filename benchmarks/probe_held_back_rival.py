@@ -56,13 +56,18 @@ def _outright(r) -> bool:
 
 
 def against_off(paths) -> dict:
-    """The rows where the rule fired, judged against their rule-off rows of the same machine."""
+    """The rows where the rule fired, judged against their rule-off rows of the same machine (the probe JSONs
+    ``paths``, :func:`against_off_of`)."""
+    return against_off_of(json.load(open(p)) for p in paths)
+
+
+def against_off_of(probes) -> dict:
+    """:func:`against_off` of probe JSONs already read (dicts with ``examined``, ``rows`` and ``rows_off``)."""
     out = {"examined": 0, "fired": 0, "classes_examined": {}, "changed": [], "wrong_gained": [], "wrong_lost": [],
            "missed_on": 0, "missed_off": 0, "null_findings_gained": [], "oov_unexplained_lost": [],
            "correct_off": 0, "outright_off": 0, "outright_lost": [], "verdict_changed": [],
            "off_differs_from_kept_row": [], "refused_off": []}
-    for p in paths:
-        d = json.load(open(p))
+    for d in probes:
         out["examined"] += d["examined"]
         for c, n in d.get("classes_examined", {}).items():
             out["classes_examined"][c] = out["classes_examined"].get(c, 0) + n
