@@ -154,11 +154,12 @@ def probe_results(pattern: str):
 
 def probe_lanes(probe, pattern: str, lanes: str = "abc"):
     """(doc, files, examined, summary) of a rule probe's JSONs ``benchmarks/results/PATTERN`` (:func:`probe_results`),
-    ``probe`` its module (``against_off``, ``against_off_row``): asserts their lanes are ``lanes`` in order and that
+    ``probe`` its module (``against_off``, ``against_off_row``): asserts their lanes are ``lanes`` in order (a string of
+    one-letter lanes or a list of names, "z" before "za") and that
     the docs' table holds each JSON's row as --against-off-rows prints it; ``examined``: the keys examined per family,
     ``summary``: ``probe.against_off`` over them all."""
     doc, files, _ = probe_results(pattern)
-    assert [f.name[-12:] for f, _ in files] == [f"_lane_{x}.json" for x in lanes]
+    assert [f.name.rsplit("_lane_", 1)[-1][:-len(".json")] for f, _ in files] == list(lanes)
     examined = {"loop": set(), "testbench": set()}
     for f, d in files:
         assert probe.against_off_row(f.name, probe.against_off([str(f)])) in doc, f.name

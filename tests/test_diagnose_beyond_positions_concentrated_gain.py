@@ -58,9 +58,9 @@ def test_not_kept_and_its_table_is_its_jsons():
     assert core.BEYOND_POSITIONS_CONCENTRATED_GAIN_RULE is False and nominal.BEYOND_TRAINING_POSITIONS_RULE is False
     probe = bench_module("probe_beyond_positions_concentrated_gain")
     doc, files, _ = probe_results("diagnose_beyond_positions_concentrated_gain_round97_lane_*.json")
-    assert [f.name[-12:] for f, _ in files] == ["_lane_a.json", "_lane_b.json", "_lane_c.json"]
+    assert [f.name[-12:] for f, _ in files] == ["_lane_a.json", "_lane_b.json", "_lane_c.json", "_lane_d.json"]
     examined = sorted(k for _, d in files for k in d["keys_examined"])
-    assert examined == probe.listed_keys("loop") and len(examined) == 837
+    assert examined == probe.listed_keys("loop") and len(examined) == 841
     flat = " ".join(doc.split())
     for f, _ in files:
         assert probe.against_off_row(f.name, probe.against_off([str(f)])) in flat, f.name
