@@ -130,6 +130,9 @@ def refolded_rows(pattern: str, rows: str = "rows") -> frozenset:
 #: and screens were run on the rows as they were, and leave these out where they compare with today's kept rows
 REFOLDED_ROUND_96 = (refolded_rows("diagnose_beyond_training_positions_round96_lane_[a-h].json")
                      | refolded_rows("diagnose_beyond_training_positions_round96_lane_*.json", "rows_off"))
+#: the keys whose kept rows the ninety-eighth round folded (its rule-on rows that differ from the rows kept before
+#: them): earlier rounds' screens were run on the rows as they were (17828 then named a law in time)
+REFOLDED_ROUND_98 = refolded_rows("diagnose_speed_curve_adc_guarded_round98_lane_*.json")
 
 
 def probe_results(pattern: str):

@@ -3255,7 +3255,7 @@ def position_laws_not_separated_from_speed_curve(prep, model, fit, j, sigma) -> 
 #: untestable and whose final residual's velocity structure only the ADC guard held back
 #: (:func:`velocity_structure_under_adc_step`); rule:
 #: ``benchmarks/results/diagnose_speed_curve_adc_guarded_round98_rule.txt``
-POSITION_LAWS_SPEED_CURVE_ADC_GUARDED = False
+POSITION_LAWS_SPEED_CURVE_ADC_GUARDED = True
 
 
 def velocity_structure_under_adc_step(prep, readings, j, alpha=None, min_share=None) -> dict | None:
