@@ -89,15 +89,18 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_speed_curve_adc_guarded")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = {x: json.loads((root / f"diagnose_speed_curve_adc_guarded_round98_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d")}
-    loop = sorted(k for x in "01cd" for k in screens[x]["keys_screened"])
-    assert loop == probe.touchable_keys("loop") and len(loop) == 7296 + 38 + 36
+               for x in ("0", "1", "testbench", "c", "d", "e")}
+    loop = sorted(k for x in "01cde" for k in screens[x]["keys_screened"])
+    assert loop == probe.touchable_keys("loop") and len(loop) == 7296 + 38 + 36 + 37
     # screen c: the fresh blocks 39000-39199, run with the rule on; none listed
     assert len(screens["c"]["keys_screened"]) == 38 and min(screens["c"]["keys_screened"]) >= 39000
     assert screens["c"]["touched"] == [] and screens["c"]["refused"] == []
     # screen d: the fresh blocks 39200-39399; none listed
     assert len(screens["d"]["keys_screened"]) == 36 and min(screens["d"]["keys_screened"]) >= 39200
     assert screens["d"]["touched"] == [] and screens["d"]["refused"] == []
+    # screen e: the fresh blocks 39400-39599; none listed
+    assert len(screens["e"]["keys_screened"]) == 37 and min(screens["e"]["keys_screened"]) >= 39400
+    assert screens["e"]["touched"] == [] and screens["e"]["refused"] == []
     assert screens["testbench"]["keys_screened"] == probe.touchable_keys("testbench")
     assert screens["testbench"]["touched"] == []
     assert [k for x in "01" for k, _ in screens[x]["refused"]] == [17787]
