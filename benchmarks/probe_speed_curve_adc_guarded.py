@@ -22,6 +22,7 @@ selected speeds too narrow for the Stribeck detector (``--screen``, no diagnosis
 """
 from __future__ import annotations
 
+import functools
 import os
 import sys
 
@@ -31,7 +32,8 @@ import bench_diagnose_testbench as B  # noqa: E402
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402
 from probe_position_laws_speed_curve import POSITION_LAWS, finding_heads  # noqa: E402
-from probe_runner import keys_args, kept_keys, probe_main, run_rule_probe  # noqa: E402
+import probe_state_check_speeds  # noqa: E402
+from probe_runner import kept_keys, probe_main, run_rule_probe  # noqa: E402
 from probe_state_check_speeds import screen_cli, screened_keys  # noqa: E402,F401
 
 RULE = "POSITION_LAWS_SPEED_CURVE_ADC_GUARDED"
@@ -53,16 +55,8 @@ def touchable_keys(family: str = "loop", results_dir=None) -> list:
     return kept_keys(family, touchable, results_dir)
 
 
-def keys_cli(argv) -> None:
-    """``--keys touchable [--family=F]`` or ``--keys screened SCREEN.json ... [--family=F]``: print those keys."""
-    family, rest = keys_args(argv)
-    if rest == ["touchable"]:
-        keys = touchable_keys(family)
-    elif rest and rest[0] == "screened" and len(rest) > 1:
-        keys = screened_keys(rest[1:], family)
-    else:
-        raise SystemExit("--keys: expected 'touchable' or 'screened SCREEN.json ...'")
-    print(" ".join(str(k) for k in keys))
+#: ``--keys touchable [--family=F]`` / ``--keys screened SCREEN.json ...``, as the ninety-first round's probe reads them
+keys_cli = functools.partial(probe_state_check_speeds.keys_cli, candidate_keys=touchable_keys, name="touchable")
 
 
 def guarded_joints(family: str, spec: dict) -> dict:

@@ -124,17 +124,17 @@ def screened_keys(paths, family: str = "loop") -> list:
     return sorted(out)
 
 
-def keys_cli(argv, candidate_keys=candidate_keys) -> None:
+def keys_cli(argv, candidate_keys=candidate_keys, name: str = "candidates") -> None:
     """``--keys candidates [--family=F]``: the kept rows the rule can change (``candidate_keys(family)``,
-    :func:`candidate_keys` unless given; the ninety-third round's probe passes its own); ``--keys screened S.json ...
-    [--family=F]``: those the screens list."""
+    :func:`candidate_keys` unless given; the ninety-third and ninety-eighth rounds' probes pass their own, the latter
+    under the ``name`` touchable); ``--keys screened S.json ... [--family=F]``: those the screens list."""
     family, rest = keys_args(argv)
-    if rest == ["candidates"]:
+    if rest == [name]:
         keys = candidate_keys(family)
     elif rest and rest[0] == "screened" and len(rest) > 1:
         keys = screened_keys(rest[1:], family)
     else:
-        raise SystemExit("--keys: expected 'candidates' or 'screened SCREEN.json ...'")
+        raise SystemExit(f"--keys: expected '{name}' or 'screened SCREEN.json ...'")
     print(" ".join(str(k) for k in keys))
 
 

@@ -3330,8 +3330,8 @@ def mark_position_laws_within_speed_curve(prep, model, fit, steps, unexplained, 
             got = position_laws_not_separated_from_speed_curve(prep, model, fit, j, sigma)
         if got is None:
             continue
-        if j in guarded:
-            r = guarded[j]
+        r = got.get("velocity_reading_under_adc_step")
+        if r is not None:
             depends = (f"the final residual still depends on the velocity ({100 * r['share']:.0f} % of its held-out "
                        f"variance, p = {r['p_value']:.2g}; its RMS {r['structure_rms']:.3g} lies under the torque "
                        f"ADC's step {r['adc_step']:.3g}, so it is not reported as unexplained) and the selected speeds "
