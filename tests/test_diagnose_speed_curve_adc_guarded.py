@@ -89,9 +89,9 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_speed_curve_adc_guarded")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = {x: json.loads((root / f"diagnose_speed_curve_adc_guarded_round98_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d", "e", "f")}
-    loop = sorted(k for x in "01cdef" for k in screens[x]["keys_screened"])
-    assert loop == probe.touchable_keys("loop") and len(loop) == 7296 + 38 + 36 + 37 + 33
+               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g")}
+    loop = sorted(k for x in "01cdefg" for k in screens[x]["keys_screened"])
+    assert loop == probe.touchable_keys("loop") and len(loop) == 7296 + 38 + 36 + 37 + 33 + 36
     # screen c: the fresh blocks 39000-39199, run with the rule on; none listed
     assert len(screens["c"]["keys_screened"]) == 38 and min(screens["c"]["keys_screened"]) >= 39000
     assert screens["c"]["touched"] == [] and screens["c"]["refused"] == []
@@ -104,6 +104,9 @@ def test_kept_and_its_table_is_its_jsons():
     # screen f: the fresh blocks 39600-39799; none listed
     assert len(screens["f"]["keys_screened"]) == 33 and min(screens["f"]["keys_screened"]) >= 39600
     assert screens["f"]["touched"] == [] and screens["f"]["refused"] == []
+    # screen g: the fresh blocks 39800-39999; none listed
+    assert len(screens["g"]["keys_screened"]) == 36 and min(screens["g"]["keys_screened"]) >= 39800
+    assert screens["g"]["touched"] == [] and screens["g"]["refused"] == []
     assert screens["testbench"]["keys_screened"] == probe.touchable_keys("testbench")
     assert screens["testbench"]["touched"] == []
     assert [k for x in "01" for k, _ in screens[x]["refused"]] == [17787]
