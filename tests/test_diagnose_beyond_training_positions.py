@@ -97,8 +97,9 @@ def test_switched_off_after_the_full_screen_and_its_table_is_its_jsons():
     assert nominal.BEYOND_TRAINING_POSITIONS_RULE is False
     probe = bench_module("probe_beyond_training_positions")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+    loop_screens = ["0", "1", *"cdefghijklmnopqrstuvwxyz", "za", "zb"]     # "z" before "za"
     screens = {x: json.loads((root / f"diagnose_beyond_training_positions_round96_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j", "k", "l", "m", "n", "o", "p", "q", "r", "s", "t", "u", "v", "w", "x", "y", "z")}
+               for x in ["testbench", *loop_screens]}
     sample = sorted(k for x in "01" for k in screens[x]["keys_screened"])
     # drawn when the kept rows ended at 37799 (blocks appended later do not move the earlier picks)
     assert sample == [k for k in probe.every_keys(10, "loop") if k < 37800] and len(sample) == 3775
@@ -109,7 +110,7 @@ def test_switched_off_after_the_full_screen_and_its_table_is_its_jsons():
     fresh = sorted(k for x in "cd" for k in screens[x]["keys_screened"])
     assert len(fresh) == 598 and min(fresh) == 37400 and max(fresh) < 38000
     # every kept closed-loop row is screened (the sample's picks at 37400 and above twice: screens c-h too)
-    assert sorted({k for x in "01cdefghijklmnopqrstuvwxyz" for k in screens[x]["keys_screened"]}) == probe.kept_keys(
+    assert sorted({k for x in loop_screens for k in screens[x]["keys_screened"]}) == probe.kept_keys(
         "loop", lambda r: True)
     full = sorted(k for x in "ij" for k in screens[x]["keys_screened"])
     assert len(full) == 33609 and max(full) < 37400
@@ -120,7 +121,7 @@ def test_switched_off_after_the_full_screen_and_its_table_is_its_jsons():
                                        for x in "ij"])
     assert len(listed) == 90 and len(listed_fresh) == 19 and 37492 in listed_fresh and len(listed_full) == 708
     doc, files, examined, s = probe_lanes(probe, "diagnose_beyond_training_positions_round96_lane_*.json",
-                                          lanes="abcdefghijklmnopqr")
+                                          lanes="abcdefghijklmnopqrs")
     keys = [d["keys_examined"] for _, d in files]
     assert sorted(keys[0] + keys[1]) == listed and keys[2] == [37492]
     assert sorted(keys[3] + keys[4]) == [k for k in listed_fresh if k != 37492] and keys[5] == [21436, 25506]
@@ -169,7 +170,12 @@ def test_switched_off_after_the_full_screen_and_its_table_is_its_jsons():
     assert len(fresh11) == 199 and min(fresh11) == 39800 and max(fresh11) < 40000
     assert keys[17] == probe.screened_keys([root / f"diagnose_beyond_training_positions_round96_screen_{x}.json"
                                             for x in "yz"]) == [39863, 39925]
-    assert s["fired"] == s["examined"] == 864
+    # screens za, zb and lane s: the fresh blocks 40000-40199, run with the switch off
+    fresh12 = sorted(k for x in ("za", "zb") for k in screens[x]["keys_screened"])
+    assert len(fresh12) == 200 and min(fresh12) == 40000 and max(fresh12) < 40200
+    assert keys[18] == probe.screened_keys([root / f"diagnose_beyond_training_positions_round96_screen_{x}.json"
+                                            for x in ("za", "zb")]) == [40013, 40057, 40084, 40097, 40122, 40133, 40178]
+    assert s["fired"] == s["examined"] == 871
     assert s["wrong_gained"] == [5586] and s["wrong_lost"] == [37492]
     assert s["null_findings_gained"] == s["oov_unexplained_lost"] == []
     _, _, differences = probe_results("diagnose_beyond_training_positions_round96_lane_*.json")

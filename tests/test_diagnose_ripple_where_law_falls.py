@@ -122,7 +122,7 @@ def test_kept_and_its_tables_are_its_jsons():
     assert f95[6][1]["keys_examined"] == [k for k in touchable if 39000 <= k < 39400] == [39040, 39060]
     assert f95[7][1]["keys_examined"] == [k for k in touchable if 39400 <= k < 39600] == [39521]
     assert f95[8][1]["keys_examined"] == [k for k in touchable if 39600 <= k < 39800] == [39632]
-    assert f95[9][1]["keys_examined"] == [k for k in touchable if k >= 39800] == [39808]
+    assert f95[9][1]["keys_examined"] == [k for k in touchable if k >= 39800] == [39808]     # 40000-40199: none
     assert probe.examined_keys([f for f, _ in f94[:1]]) == lane_a
     assert len(ex94["testbench"]) == 150 and [t for t in f94[1][1]["touched"]] == []
     assert s94["wrong_gained"] == [16004] and s94["wrong_lost"] == [37278]

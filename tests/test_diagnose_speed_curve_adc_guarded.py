@@ -89,9 +89,9 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_speed_curve_adc_guarded")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = {x: json.loads((root / f"diagnose_speed_curve_adc_guarded_round98_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g")}
-    loop = sorted(k for x in "01cdefg" for k in screens[x]["keys_screened"])
-    assert loop == probe.touchable_keys("loop") and len(loop) == 7296 + 38 + 36 + 37 + 33 + 36
+               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h")}
+    loop = sorted(k for x in "01cdefgh" for k in screens[x]["keys_screened"])
+    assert loop == probe.touchable_keys("loop") and len(loop) == 7296 + 38 + 36 + 37 + 33 + 36 + 36
     # screen c: the fresh blocks 39000-39199, run with the rule on; none listed
     assert len(screens["c"]["keys_screened"]) == 38 and min(screens["c"]["keys_screened"]) >= 39000
     assert screens["c"]["touched"] == [] and screens["c"]["refused"] == []
@@ -107,13 +107,18 @@ def test_kept_and_its_table_is_its_jsons():
     # screen g: the fresh blocks 39800-39999; none listed
     assert len(screens["g"]["keys_screened"]) == 36 and min(screens["g"]["keys_screened"]) >= 39800
     assert screens["g"]["touched"] == [] and screens["g"]["refused"] == []
+    # screen h: the fresh blocks 40000-40199; two listed, which lane c diagnosed with the rule on (no law marked)
+    assert len(screens["h"]["keys_screened"]) == 36 and min(screens["h"]["keys_screened"]) >= 40000
+    assert [k for k, _ in screens["h"]["touched"]] == [40093, 40136] and screens["h"]["refused"] == []
     assert screens["testbench"]["keys_screened"] == probe.touchable_keys("testbench")
     assert screens["testbench"]["touched"] == []
     assert [k for x in "01" for k, _ in screens[x]["refused"]] == [17787]
     listed = probe.screened_keys([root / f"diagnose_speed_curve_adc_guarded_round98_screen_{x}.json" for x in "01"])
     assert len(listed) == 140 and 33286 in listed
-    doc, files, examined, s = probe_lanes(probe, "diagnose_speed_curve_adc_guarded_round98_lane_*.json", lanes="ab")
-    assert sorted(examined["loop"]) == listed and not examined["testbench"]
+    doc, files, examined, s = probe_lanes(probe, "diagnose_speed_curve_adc_guarded_round98_lane_*.json", lanes="abc")
+    assert sorted(k for _, d in files[:2] for k in d["keys_examined"]) == listed and not examined["testbench"]
+    assert files[2][1]["keys_examined"] == probe.screened_keys(
+        [root / "diagnose_speed_curve_adc_guarded_round98_screen_h.json"]) and files[2][1]["touched"] == []
     assert sorted(t["k"] for _, d in files for t in d["touched"]) == [7251, 11891, 15323, 17828, 33286]
     for _, d in files:
         for t in d["touched"]:
