@@ -3051,6 +3051,92 @@ def _add_rivals(st, new, key, info, reason) -> None:
                       "reason": f"{c.get('reason', '')}; {reason}".lstrip("; ") if c.get("ambiguous") else reason}
 
 
+#: (ninety-ninth round, off) a motor-position ripple named on a joint whose nominal training residual is mostly a
+#: sinusoid in time at the frequency locked to the held-out split is reported ambiguous with
+#: ``time_periodic_disturbance`` (:func:`mark_ripple_beside_split_locked_disturbance`); rule:
+#: ``benchmarks/results/diagnose_ripple_split_locked_round99_rule.txt``
+RIPPLE_BESIDE_SPLIT_LOCKED_DISTURBANCE = False
+#: ... from this share of the nominal training residual's variance (:func:`split_locked_disturbance`)
+SPLIT_LOCKED_SHARE = 0.5
+
+
+def split_locked_frequency_hz(prep, j):
+    """The frequency [Hz] locked to joint ``j``'s held-out split (:func:`~drake_est.diagnose.nominal.block_split`,
+    alternating blocks of L seconds): 1 / (2 L).  A sinusoid in time at it advances by half a cycle per block, so every
+    training block sees the same half of its cycle and every held-out block the other half (at an odd multiple each
+    block holds a whole cycle or more, which the fit sees).  None for several logs (whole logs are held out) or where
+    it lies above 0.45 of the sampling rate."""
+    from drake_est.diagnose.nominal import n_blocks_for
+    jd = prep.joints[j]
+    if "log_index" in getattr(getattr(prep, "log", None), "channels", {}):
+        return None
+    t0, t1 = float(jd.t[0]), float(jd.t[-1])
+    if not t1 > t0 or jd.t.size < 2:
+        return None
+    f = n_blocks_for(t1 - t0) / (2.0 * (t1 - t0))
+    return float(f) if f <= 0.45 / float(np.median(np.diff(jd.t))) else None
+
+
+def split_locked_disturbance(prep, j, r, min_share=None) -> dict | None:
+    """With ``r`` joint ``j``'s nominal residual at its used rows: the share of its training rows' variance that a
+    sinusoid in time at :func:`split_locked_frequency_hz` (cos, sin and a constant, against the constant alone)
+    explains, when it is at least ``min_share`` (default :data:`SPLIT_LOCKED_SHARE`); else None.  The held-out
+    comparison cannot judge a disturbance at that frequency: fitted on one half of each cycle it is judged on the
+    other, where any misfit of its shape (the axis sticking under a Coulomb level larger than the disturbance) shows
+    in full (fresh loop spec 40305: a 0.5 Hz disturbance alone, 91 % of the training residual's variance, 21 % higher
+    held-out RMSE; with blocks of 0.7 s it is named, 88 % lower)."""
+    min_share = SPLIT_LOCKED_SHARE if min_share is None else min_share
+    f = split_locked_frequency_hz(prep, j)
+    if f is None:
+        return None
+    jd = prep.joints[j]
+    tr = jd.train
+    y = np.asarray(r, float)[tr]
+    if y.size < 10:
+        return None
+    y = y - y.mean()
+    w = 2 * np.pi * f * jd.t[jd.rows][tr]
+    B = np.column_stack([np.ones_like(w), np.cos(w), np.sin(w)])
+    e = y - B @ np.linalg.lstsq(B, y, rcond=None)[0]
+    ss = float(y @ y)
+    share = 1.0 - float(e @ e) / ss if ss > 0 else 0.0
+    if share < min_share:
+        return None
+    return {"frequency_hz": f, "block_s": 0.5 / f, "share_of_training_residual": share,
+            "training_rows": int(tr.sum())}
+
+
+def mark_ripple_beside_split_locked_disturbance(prep, steps) -> list:
+    """With :data:`RIPPLE_BESIDE_SPLIT_LOCKED_DISTURBANCE`: each named ``motor_position_ripple`` step, not already
+    ambiguous with ``time_periodic_disturbance``, on a joint whose nominal residual :func:`split_locked_disturbance`
+    finds mostly periodic in time at the split's locked frequency is marked ambiguous with that disturbance: the
+    held-out blocks, which decided between them, cannot judge it.  The model is not changed.  Returns the marked
+    steps."""
+    if not RIPPLE_BESIDE_SPLIT_LOCKED_DISTURBANCE:
+        return []
+    marked, residual = [], {}
+    for st in steps:
+        e = st.ext
+        if e.shared or e.effect != "motor_position_ripple" or e.joint not in prep.joints:
+            continue
+        if st.competition.get("ambiguous") and "time_periodic_disturbance" in comp.ambiguous_rivals(st.competition):
+            continue
+        if not residual:
+            fit0 = Model(prep, []).fit()
+            residual.update({j: _residual(prep, fit0, j) for j in prep.joints})
+        got = split_locked_disturbance(prep, e.joint, residual[e.joint])
+        if got is None:
+            continue
+        reason = (f"a sinusoid in time at {got['frequency_hz']:.3g} Hz explains "
+                  f"{100 * got['share_of_training_residual']:.0f} % of the nominal training residual of joint "
+                  f"{e.joint}, and the held-out blocks alternate every {got['block_s']:.3g} s: every training block "
+                  "sees the same half of its cycle and every held-out block the other half, so the held-out "
+                  "comparison cannot judge a disturbance periodic in time at that frequency (time_periodic_disturbance)")
+        _add_rivals(st, ["time_periodic_disturbance"], "split_locked_disturbance", got, reason)
+        marked.append(st)
+    return marked
+
+
 #: (ninety-third round) a position load whose held-out gain lies mostly on the few samples moving in the direction in
 #: which the log cannot test an asymmetric Coulomb level is reported ambiguous with that level
 #: (:func:`mark_load_in_untested_direction`)
@@ -3875,6 +3961,7 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
                 mark_disturbance_confounded_with_state(prep, model, out[3], alpha, min_gain)
                 mark_position_laws_within_speed_curve(prep, model, fit, out[3], unexplained, out[7], readings)
                 mark_load_in_untested_direction(prep, model, fit, out[3], out[7])
+                mark_ripple_beside_split_locked_disturbance(prep, out[3])
                 break
             effect, joint, why = hit
             out = close_and_search(effect, joint, {"effect": effect, "joint": int(joint), **why})
