@@ -1,0 +1,106 @@
+"""The ninety-ninth round's probe: a named motor-position ripple is reported ambiguous with a disturbance periodic in
+time where a sinusoid at the frequency locked to the held-out split explains most of its joint's nominal training
+residual.
+
+Fresh loop spec 40305 (a time-periodic disturbance alone at 0.5 Hz, 1000 Hz, quantized torque, an axis that barely
+moves) is named a motor-position ripple: the held-out blocks alternate every second, so every training block sees
+the same half of the 0.5 Hz cycle and every held-out block the other half, and the disturbance fitted on one half
+predicts the other worse than no disturbance at all.  The rule (``core.RIPPLE_BESIDE_SPLIT_LOCKED_DISTURBANCE``,
+where it acts: ``core.split_locked_disturbance``; rule file:
+``benchmarks/results/diagnose_ripple_split_locked_round99_rule.txt``) only relabels the final findings.
+
+A kept row can change only when one of its findings has a motor-position ripple at its head and no time-periodic
+disturbance (``--keys touchable``), and its log's nominal training residual is mostly a sinusoid at the locked
+frequency on some joint (``--screen``: preparation and the nominal fit, no diagnosis); the screens list those.
+
+    python benchmarks/probe_ripple_split_locked.py --keys touchable > kt.txt
+    OPENBLAS_NUM_THREADS=1 python benchmarks/probe_ripple_split_locked.py --screen S0.json --lane=0/2 $(cat kt.txt)
+    OPENBLAS_NUM_THREADS=1 python benchmarks/probe_ripple_split_locked.py --screen S1.json --lane=1/2 $(cat kt.txt)
+    python benchmarks/probe_ripple_split_locked.py --keys screened S0.json S1.json > ks.txt
+    OPENBLAS_NUM_THREADS=1 python benchmarks/probe_ripple_split_locked.py OUT.json $(cat ks.txt)
+    python benchmarks/probe_ripple_split_locked.py --against-off-rows OUT.json     # the docs' table
+"""
+from __future__ import annotations
+
+import functools
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import bench_diagnose_testbench as B  # noqa: E402
+from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
+from probe_position_friction_halves import row_class  # noqa: E402
+import probe_state_check_speeds  # noqa: E402
+from probe_runner import kept_keys, probe_main, run_rule_probe  # noqa: E402
+from probe_state_check_speeds import screen_cli, screened_keys  # noqa: E402,F401
+
+RULE = "RIPPLE_BESIDE_SPLIT_LOCKED_DISTURBANCE"
+FUNC = "split_locked_disturbance"
+WHAT = "a joint whose nominal training residual is mostly a sinusoid at the split's locked frequency"
+RIPPLE, PERIODIC = "motor_position_ripple", "time_periodic_disturbance"
+
+
+def touchable(row) -> bool:
+    """Whether the rule can change this kept row: a finding with a motor-position ripple at its head and no
+    time-periodic disturbance in it."""
+    for part in row["got"].split("+"):
+        head = part[len("ambiguous("):].split("|")[0] if part.startswith("ambiguous(") else part
+        if head == RIPPLE and PERIODIC not in part:
+            return True
+    return False
+
+
+def touchable_keys(family: str = "loop", results_dir=None) -> list:
+    """The keys of ``family``'s kept rows that are :func:`touchable`, sorted."""
+    return kept_keys(family, touchable, results_dir)
+
+
+#: ``--keys touchable [--family=F]`` / ``--keys screened SCREEN.json ...``, as the ninety-first round's probe reads them
+keys_cli = functools.partial(probe_state_check_speeds.keys_cli, candidate_keys=touchable_keys, name="touchable")
+
+
+def locked_joints(family: str, spec: dict) -> dict:
+    """{joint: :func:`core.split_locked_disturbance`} of the log of ``spec`` (of ``family``) as prepared for its kept
+    row, on the nominal fit's residual (no diagnosis): the joints the rule can mark; ``{"refused": message}`` when
+    preparation refuses the log."""
+    from drake_est.diagnose import core
+    from drake_est.diagnose.nominal import prepare
+    from drake_est.errors import DataError
+    log = B.loop_log(spec, check_visible=False)[0] if family == "loop" else B.family_log(family, spec)[0]
+    try:
+        prep = prepare(log, robot="generic")
+    except DataError as e:
+        return {"refused": str(e)}
+    fit0 = core.Model(prep, []).fit()
+    out = {}
+    for j in prep.joints:
+        got = core.split_locked_disturbance(prep, j, core._residual(prep, fit0, j))
+        if got is not None:
+            out[str(j)] = got
+    return out
+
+
+def _record(got, a, kw):
+    """The record of one firing (None: the sinusoid at the locked frequency explains too little)."""
+    if got is None:
+        return None
+    return {"joint": int(a[1]), **got}
+
+
+def run(out_path: str, keys, family: str = "loop") -> dict:
+    """Diagnose the kept logs ``keys`` of ``family`` with the rule on; where it marked a ripple, store the rows and
+    those of the same logs with the rule off."""
+    return run_rule_probe(out_path, keys, family, rule=RULE, func=FUNC, record=_record, hits_key="marked",
+                          row_class=row_class, compare_off=True)
+
+
+def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not screen_cli(argv, measure=locked_joints, what=WHAT, desc="prepare (nominal fit, locked sinusoid)") \
+            and not against_off_cli(argv):
+        probe_main(argv, __doc__, keys_cli, run)
+
+
+if __name__ == "__main__":
+    main()
