@@ -3051,11 +3051,11 @@ def _add_rivals(st, new, key, info, reason) -> None:
                       "reason": f"{c.get('reason', '')}; {reason}".lstrip("; ") if c.get("ambiguous") else reason}
 
 
-#: (ninety-ninth round, off) a motor-position ripple named on a joint whose nominal training residual is mostly a
+#: (ninety-ninth round) a motor-position ripple named on a joint whose nominal training residual is mostly a
 #: sinusoid in time at the frequency locked to the held-out split is reported ambiguous with
 #: ``time_periodic_disturbance`` (:func:`mark_ripple_beside_split_locked_disturbance`); rule:
 #: ``benchmarks/results/diagnose_ripple_split_locked_round99_rule.txt``
-RIPPLE_BESIDE_SPLIT_LOCKED_DISTURBANCE = False
+RIPPLE_BESIDE_SPLIT_LOCKED_DISTURBANCE = True
 #: ... from this share of the nominal training residual's variance (:func:`split_locked_disturbance`)
 SPLIT_LOCKED_SHARE = 0.5
 
