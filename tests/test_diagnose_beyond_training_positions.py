@@ -97,7 +97,7 @@ def test_switched_off_after_the_full_screen_and_its_table_is_its_jsons():
     assert nominal.BEYOND_TRAINING_POSITIONS_RULE is False
     probe = bench_module("probe_beyond_training_positions")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
-    loop_screens = ["0", "1", *"cdefghijklmnopqrstuvwxyz", "za", "zb"]     # "z" before "za"
+    loop_screens = ["0", "1", *"cdefghijklmnopqrstuvwxyz", "za", "zb", "zc", "zd"]     # "z" before "za"
     screens = {x: json.loads((root / f"diagnose_beyond_training_positions_round96_screen_{x}.json").read_text())
                for x in ["testbench", *loop_screens]}
     sample = sorted(k for x in "01" for k in screens[x]["keys_screened"])
@@ -121,7 +121,7 @@ def test_switched_off_after_the_full_screen_and_its_table_is_its_jsons():
                                        for x in "ij"])
     assert len(listed) == 90 and len(listed_fresh) == 19 and 37492 in listed_fresh and len(listed_full) == 708
     doc, files, examined, s = probe_lanes(probe, "diagnose_beyond_training_positions_round96_lane_*.json",
-                                          lanes="abcdefghijklmnopqrs")
+                                          lanes="abcdefghijklmnopqrst")
     keys = [d["keys_examined"] for _, d in files]
     assert sorted(keys[0] + keys[1]) == listed and keys[2] == [37492]
     assert sorted(keys[3] + keys[4]) == [k for k in listed_fresh if k != 37492] and keys[5] == [21436, 25506]
@@ -175,7 +175,12 @@ def test_switched_off_after_the_full_screen_and_its_table_is_its_jsons():
     assert len(fresh12) == 200 and min(fresh12) == 40000 and max(fresh12) < 40200
     assert keys[18] == probe.screened_keys([root / f"diagnose_beyond_training_positions_round96_screen_{x}.json"
                                             for x in ("za", "zb")]) == [40013, 40057, 40084, 40097, 40122, 40133, 40178]
-    assert s["fired"] == s["examined"] == 871
+    # screens zc, zd and lane t: the fresh blocks 40200-40399, run with the switch off
+    fresh13 = sorted(k for x in ("zc", "zd") for k in screens[x]["keys_screened"])
+    assert len(fresh13) == 200 and min(fresh13) == 40200 and max(fresh13) < 40400
+    assert keys[19] == probe.screened_keys([root / f"diagnose_beyond_training_positions_round96_screen_{x}.json"
+                                            for x in ("zc", "zd")]) == [40215, 40241, 40280, 40310, 40351, 40353]
+    assert s["fired"] == s["examined"] == 877
     assert s["wrong_gained"] == [5586] and s["wrong_lost"] == [37492]
     assert s["null_findings_gained"] == s["oov_unexplained_lost"] == []
     _, _, differences = probe_results("diagnose_beyond_training_positions_round96_lane_*.json")
