@@ -89,9 +89,9 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_speed_curve_adc_guarded")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = {x: json.loads((root / f"diagnose_speed_curve_adc_guarded_round98_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i")}
-    loop = sorted(k for x in "01cdefghi" for k in screens[x]["keys_screened"])
-    assert loop == probe.touchable_keys("loop") and len(loop) == 7296 + 38 + 36 + 37 + 33 + 36 + 36 + 37
+               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j")}
+    loop = sorted(k for x in "01cdefghij" for k in screens[x]["keys_screened"])
+    assert loop == probe.touchable_keys("loop") and len(loop) == 7296 + 38 + 36 + 37 + 33 + 36 + 36 + 37 + 37
     # screen c: the fresh blocks 39000-39199, run with the rule on; none listed
     assert len(screens["c"]["keys_screened"]) == 38 and min(screens["c"]["keys_screened"]) >= 39000
     assert screens["c"]["touched"] == [] and screens["c"]["refused"] == []
@@ -113,6 +113,9 @@ def test_kept_and_its_table_is_its_jsons():
     # screen i: the fresh blocks 40200-40399; none listed
     assert len(screens["i"]["keys_screened"]) == 37 and min(screens["i"]["keys_screened"]) >= 40200
     assert screens["i"]["touched"] == [] and screens["i"]["refused"] == []
+    # screen j: the fresh blocks 40400-40599; none listed
+    assert len(screens["j"]["keys_screened"]) == 37 and min(screens["j"]["keys_screened"]) >= 40400
+    assert screens["j"]["touched"] == [] and screens["j"]["refused"] == []
     assert screens["testbench"]["keys_screened"] == probe.touchable_keys("testbench")
     assert screens["testbench"]["touched"] == []
     assert [k for x in "01" for k, _ in screens[x]["refused"]] == [17787]
