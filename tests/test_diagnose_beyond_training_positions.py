@@ -97,7 +97,7 @@ def test_switched_off_after_the_full_screen_and_its_table_is_its_jsons():
     assert nominal.BEYOND_TRAINING_POSITIONS_RULE is False
     probe = bench_module("probe_beyond_training_positions")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
-    loop_screens = ["0", "1", *"cdefghijklmnopqrstuvwxyz", "za", "zb", "zc", "zd", "ze", "zf"]     # "z" before "za"
+    loop_screens = ["0", "1", *"cdefghijklmnopqrstuvwxyz", "za", "zb", "zc", "zd", "ze", "zf", "zg", "zh"]     # "z" before "za"
     screens = {x: json.loads((root / f"diagnose_beyond_training_positions_round96_screen_{x}.json").read_text())
                for x in ["testbench", *loop_screens]}
     sample = sorted(k for x in "01" for k in screens[x]["keys_screened"])
@@ -121,7 +121,7 @@ def test_switched_off_after_the_full_screen_and_its_table_is_its_jsons():
                                        for x in "ij"])
     assert len(listed) == 90 and len(listed_fresh) == 19 and 37492 in listed_fresh and len(listed_full) == 708
     doc, files, examined, s = probe_lanes(probe, "diagnose_beyond_training_positions_round96_lane_*.json",
-                                          lanes="abcdefghijklmnopqrstu")
+                                          lanes="abcdefghijklmnopqrstuv")
     keys = [d["keys_examined"] for _, d in files]
     assert sorted(keys[0] + keys[1]) == listed and keys[2] == [37492]
     assert sorted(keys[3] + keys[4]) == [k for k in listed_fresh if k != 37492] and keys[5] == [21436, 25506]
@@ -186,7 +186,12 @@ def test_switched_off_after_the_full_screen_and_its_table_is_its_jsons():
     assert len(fresh14) == 198 and min(fresh14) == 40400 and max(fresh14) < 40600
     assert keys[20] == probe.screened_keys([root / f"diagnose_beyond_training_positions_round96_screen_{x}.json"
                                             for x in ("ze", "zf")]) == [40406, 40411, 40444, 40494, 40526]
-    assert s["fired"] == s["examined"] == 882
+    # screens zg, zh and lane v: the fresh blocks 40600-40799, run with the switch off
+    fresh15 = sorted(k for x in ("zg", "zh") for k in screens[x]["keys_screened"])
+    assert len(fresh15) == 200 and min(fresh15) == 40600 and max(fresh15) < 40800
+    assert keys[21] == probe.screened_keys([root / f"diagnose_beyond_training_positions_round96_screen_{x}.json"
+                                            for x in ("zg", "zh")]) == [40629, 40637, 40664, 40680, 40734, 40779]
+    assert s["fired"] == s["examined"] == 888
     assert s["wrong_gained"] == [5586] and s["wrong_lost"] == [37492]
     assert s["null_findings_gained"] == s["oov_unexplained_lost"] == []
     _, _, differences = probe_results("diagnose_beyond_training_positions_round96_lane_*.json")

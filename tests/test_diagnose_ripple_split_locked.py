@@ -84,12 +84,16 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_ripple_split_locked")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = {x: json.loads((root / f"diagnose_ripple_split_locked_round99_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c")}
+               for x in ("0", "1", "testbench", "c", "d")}
     loop = sorted(k for x in "01" for k in screens[x]["keys_screened"])
     assert len(loop) == 3611 and 40305 in loop and max(loop) < 40400
     # screen c: the 18 touchable rows of the fresh blocks 40400-40599, none listed
     fresh = screens["c"]["keys_screened"]
-    assert len(fresh) == 18 and min(fresh) >= 40400 and screens["c"]["touched"] == []
+    assert len(fresh) == 18 and min(fresh) >= 40400 and max(fresh) < 40600 and screens["c"]["touched"] == []
+    # screen d: the 19 of the fresh blocks 40600-40799, none listed
+    assert len(screens["d"]["keys_screened"]) == 19 and min(screens["d"]["keys_screened"]) >= 40600
+    assert screens["d"]["touched"] == []
+    fresh = fresh + screens["d"]["keys_screened"]
     assert sorted(set(loop + fresh) - {40305}) == probe.touchable_keys("loop")
     assert screens["testbench"]["keys_screened"] == probe.touchable_keys("testbench")
     assert len(screens["testbench"]["keys_screened"]) == 22 and screens["testbench"]["touched"] == []

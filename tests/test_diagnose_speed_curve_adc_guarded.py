@@ -89,9 +89,9 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_speed_curve_adc_guarded")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = {x: json.loads((root / f"diagnose_speed_curve_adc_guarded_round98_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j")}
-    loop = sorted(k for x in "01cdefghij" for k in screens[x]["keys_screened"])
-    assert loop == probe.touchable_keys("loop") and len(loop) == 7296 + 38 + 36 + 37 + 33 + 36 + 36 + 37 + 37
+               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j", "k")}
+    loop = sorted(k for x in "01cdefghijk" for k in screens[x]["keys_screened"])
+    assert loop == probe.touchable_keys("loop") and len(loop) == 7296 + 38 + 36 + 37 + 33 + 36 + 36 + 37 + 37 + 38
     # screen c: the fresh blocks 39000-39199, run with the rule on; none listed
     assert len(screens["c"]["keys_screened"]) == 38 and min(screens["c"]["keys_screened"]) >= 39000
     assert screens["c"]["touched"] == [] and screens["c"]["refused"] == []
@@ -116,6 +116,9 @@ def test_kept_and_its_table_is_its_jsons():
     # screen j: the fresh blocks 40400-40599; none listed
     assert len(screens["j"]["keys_screened"]) == 37 and min(screens["j"]["keys_screened"]) >= 40400
     assert screens["j"]["touched"] == [] and screens["j"]["refused"] == []
+    # screen k: the fresh blocks 40600-40799; none listed
+    assert len(screens["k"]["keys_screened"]) == 38 and min(screens["k"]["keys_screened"]) >= 40600
+    assert screens["k"]["touched"] == [] and screens["k"]["refused"] == []
     assert screens["testbench"]["keys_screened"] == probe.touchable_keys("testbench")
     assert screens["testbench"]["touched"] == []
     assert [k for x in "01" for k, _ in screens[x]["refused"]] == [17787]
