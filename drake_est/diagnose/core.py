@@ -3071,7 +3071,7 @@ def split_locked_frequency_hz(prep, j):
     if "log_index" in getattr(getattr(prep, "log", None), "channels", {}):
         return None
     t0, t1 = float(jd.t[0]), float(jd.t[-1])
-    if not t1 > t0 or jd.t.size < 2:
+    if not t1 > t0:
         return None
     f = n_blocks_for(t1 - t0) / (2.0 * (t1 - t0))
     return float(f) if f <= 0.45 / float(np.median(np.diff(jd.t))) else None
@@ -3106,25 +3106,22 @@ def split_locked_disturbance(prep, j, r, min_share=None) -> dict | None:
             "training_rows": int(tr.sum())}
 
 
-def mark_ripple_beside_split_locked_disturbance(prep, steps) -> list:
+def mark_ripple_beside_split_locked_disturbance(prep, fit0, steps) -> list:
     """With :data:`RIPPLE_BESIDE_SPLIT_LOCKED_DISTURBANCE`: each named ``motor_position_ripple`` step, not already
-    ambiguous with ``time_periodic_disturbance``, on a joint whose nominal residual :func:`split_locked_disturbance`
-    finds mostly periodic in time at the split's locked frequency is marked ambiguous with that disturbance: the
-    held-out blocks, which decided between them, cannot judge it.  The model is not changed.  Returns the marked
-    steps."""
+    ambiguous with ``time_periodic_disturbance``, on a joint whose nominal residual (of ``fit0``, the search's fit of
+    the nominal model) :func:`split_locked_disturbance` finds mostly periodic in time at the split's locked frequency
+    is marked ambiguous with that disturbance: the held-out blocks, which decided between them, cannot judge it.  The
+    model is not changed.  Returns the marked steps."""
     if not RIPPLE_BESIDE_SPLIT_LOCKED_DISTURBANCE:
         return []
-    marked, residual = [], {}
+    marked = []
     for st in steps:
         e = st.ext
         if e.shared or e.effect != "motor_position_ripple" or e.joint not in prep.joints:
             continue
         if st.competition.get("ambiguous") and "time_periodic_disturbance" in comp.ambiguous_rivals(st.competition):
             continue
-        if not residual:
-            fit0 = Model(prep, []).fit()
-            residual.update({j: _residual(prep, fit0, j) for j in prep.joints})
-        got = split_locked_disturbance(prep, e.joint, residual[e.joint])
+        got = split_locked_disturbance(prep, e.joint, _residual(prep, fit0, e.joint))
         if got is None:
             continue
         reason = (f"a sinusoid in time at {got['frequency_hz']:.3g} Hz explains "
@@ -3961,7 +3958,7 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
                 mark_disturbance_confounded_with_state(prep, model, out[3], alpha, min_gain)
                 mark_position_laws_within_speed_curve(prep, model, fit, out[3], unexplained, out[7], readings)
                 mark_load_in_untested_direction(prep, model, fit, out[3], out[7])
-                mark_ripple_beside_split_locked_disturbance(prep, out[3])
+                mark_ripple_beside_split_locked_disturbance(prep, out[0], out[3])
                 break
             effect, joint, why = hit
             out = close_and_search(effect, joint, {"effect": effect, "joint": int(joint), **why})
