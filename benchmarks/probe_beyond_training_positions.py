@@ -28,7 +28,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
-from probe_runner import keys_args, kept_keys, probe_main, run_rule_probe  # noqa: E402
+from probe_runner import keys_args, kept_keys, run_rule_probe  # noqa: E402
+import probe_state_check_speeds  # noqa: E402
 from probe_state_check_speeds import per_joint_of_prepared, screen_cli, screened_keys  # noqa: E402,F401
 
 RULE = "BEYOND_TRAINING_POSITIONS_RULE"
@@ -88,10 +89,9 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 
 def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not screen_cli(argv, measure=rows_beyond_positions, what=WHAT, desc="prepare (beyond training positions)") \
-            and not against_off_cli(argv):
-        probe_main(argv, __doc__, keys_cli, run)
+    probe_state_check_speeds.screen_probe_main(list(sys.argv[1:] if argv is None else argv), __doc__, keys_cli, run,
+                                               measure=rows_beyond_positions, what=WHAT,
+                                               desc="prepare (beyond training positions)")
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ import bench_diagnose_testbench as B  # noqa: E402
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402
 import probe_state_check_speeds  # noqa: E402
-from probe_runner import kept_keys, probe_main, run_rule_probe  # noqa: E402
+from probe_runner import kept_keys, run_rule_probe  # noqa: E402
 from probe_state_check_speeds import screen_cli, screened_keys  # noqa: E402,F401
 
 RULE = "RIPPLE_BESIDE_SPLIT_LOCKED_DISTURBANCE"
@@ -65,13 +65,9 @@ def locked_joints(family: str, spec: dict) -> dict:
     row, on the nominal fit's residual (no diagnosis): the joints the rule can mark; ``{"refused": message}`` when
     preparation refuses the log."""
     from drake_est.diagnose import core
-    from drake_est.diagnose.nominal import prepare
-    from drake_est.errors import DataError
-    log = B.loop_log(spec, check_visible=False)[0] if family == "loop" else B.family_log(family, spec)[0]
-    try:
-        prep = prepare(log, robot="generic")
-    except DataError as e:
-        return {"refused": str(e)}
+    prep = probe_state_check_speeds.prepared_log(family, spec)
+    if isinstance(prep, dict):
+        return prep
     fit0 = core.Model(prep, []).fit()
     out = {}
     for j in prep.joints:
@@ -96,10 +92,9 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 
 def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not screen_cli(argv, measure=locked_joints, what=WHAT, desc="prepare (nominal fit, locked sinusoid)") \
-            and not against_off_cli(argv):
-        probe_main(argv, __doc__, keys_cli, run)
+    probe_state_check_speeds.screen_probe_main(list(sys.argv[1:] if argv is None else argv), __doc__, keys_cli, run,
+                                               measure=locked_joints, what=WHAT,
+                                               desc="prepare (nominal fit, locked sinusoid)")
 
 
 if __name__ == "__main__":

@@ -33,7 +33,7 @@ from probe_held_back_rival import against_off, against_off_cli, against_off_row 
 from probe_position_friction_halves import row_class  # noqa: E402
 from probe_position_laws_speed_curve import POSITION_LAWS, finding_heads  # noqa: E402
 import probe_state_check_speeds  # noqa: E402
-from probe_runner import kept_keys, probe_main, run_rule_probe  # noqa: E402
+from probe_runner import kept_keys, run_rule_probe  # noqa: E402
 from probe_state_check_speeds import screen_cli, screened_keys  # noqa: E402,F401
 
 RULE = "POSITION_LAWS_SPEED_CURVE_ADC_GUARDED"
@@ -66,13 +66,10 @@ def guarded_joints(family: str, spec: dict) -> dict:
     95 % over their 2 % quantile); ``{"refused": message}`` when preparation refuses the log."""
     import numpy as np
     from drake_est.diagnose.detectors import stribeck_speeds
-    from drake_est.diagnose.nominal import joint_tau_step, prepare
-    from drake_est.errors import DataError
-    log = B.loop_log(spec, check_visible=False)[0] if family == "loop" else B.family_log(family, spec)[0]
-    try:
-        prep = prepare(log, robot="generic")
-    except DataError as e:
-        return {"refused": str(e)}
+    from drake_est.diagnose.nominal import joint_tau_step
+    prep = probe_state_check_speeds.prepared_log(family, spec)
+    if isinstance(prep, dict):
+        return prep
     out = {}
     for j, jd in prep.joints.items():
         v = np.abs(jd.v[jd.rows][jd.train])
@@ -99,10 +96,9 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 
 def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not screen_cli(argv, measure=guarded_joints, what=WHAT, desc="prepare (quantized, Stribeck untestable)") \
-            and not against_off_cli(argv):
-        probe_main(argv, __doc__, keys_cli, run)
+    probe_state_check_speeds.screen_probe_main(list(sys.argv[1:] if argv is None else argv), __doc__, keys_cli, run,
+                                               measure=guarded_joints, what=WHAT,
+                                               desc="prepare (quantized, Stribeck untestable)")
 
 
 if __name__ == "__main__":

@@ -54,18 +54,26 @@ def candidate_keys(family: str = "loop", results_dir=None) -> list:
     return kept_keys(family, lambda r: candidate(r, family), results_dir)
 
 
-def per_joint_of_prepared(family: str, spec: dict, per_joint) -> dict:
-    """{joint: ``per_joint(jd)``} over the joints of the log of ``spec`` (of ``family``) as prepared for its kept row
-    (no diagnosis; the closed-loop log generated without its visibility check, which changes nothing in the log);
-    joints where it returns None left out, ``{"refused": message}`` when preparation refuses the log.  The screens'
-    common part (also those of the ninety-third and ninety-sixth rounds)."""
+def prepared_log(family: str, spec: dict):
+    """The log of ``spec`` (of ``family``) as prepared for its kept row (no diagnosis; the closed-loop log generated
+    without its visibility check, which changes nothing in the log), or ``{"refused": message}`` when preparation
+    refuses it.  The screens' common part (those of the ninety-first, ninety-third, ninety-sixth, ninety-eighth and
+    ninety-ninth rounds)."""
     from drake_est.diagnose.nominal import prepare
     from drake_est.errors import DataError
     log = B.loop_log(spec, check_visible=False)[0] if family == "loop" else B.family_log(family, spec)[0]
     try:
-        prep = prepare(log, robot="generic")
+        return prepare(log, robot="generic")
     except DataError as e:
         return {"refused": str(e)}
+
+
+def per_joint_of_prepared(family: str, spec: dict, per_joint) -> dict:
+    """{joint: ``per_joint(jd)``} over the joints of :func:`prepared_log` of ``spec`` (of ``family``), joints where it
+    returns None left out; ``{"refused": message}`` when preparation refuses the log."""
+    prep = prepared_log(family, spec)
+    if isinstance(prep, dict):
+        return prep
     out = {}
     for j, jd in prep.joints.items():
         got = per_joint(jd)
@@ -193,10 +201,17 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 _ORIGINAL = _core._state_explains_one_way
 
 
+def screen_probe_main(argv, doc: str, keys_cli, run, **screen_kw) -> None:
+    """A screening probe's command line: ``--screen ...`` (:func:`screen_cli`, ``screen_kw``: its ``measure``, ``what``
+    and ``desc``), ``--against-off-rows ...`` (``probe_held_back_rival.against_off_cli``), else
+    ``probe_runner.probe_main`` with ``keys_cli`` and ``run`` (the probes of the ninety-first, ninety-third,
+    ninety-sixth, ninety-eighth and ninety-ninth rounds)."""
+    if not screen_cli(argv, **screen_kw) and not against_off_cli(argv):
+        probe_main(argv, doc, keys_cli, run)
+
+
 def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not screen_cli(argv) and not against_off_cli(argv):
-        probe_main(argv, __doc__, keys_cli, run)
+    screen_probe_main(list(sys.argv[1:] if argv is None else argv), __doc__, keys_cli, run)
 
 
 if __name__ == "__main__":
