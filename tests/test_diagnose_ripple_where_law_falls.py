@@ -106,7 +106,7 @@ def test_kept_and_its_tables_are_its_jsons():
     assert core.RIPPLE_REFINED_WHERE_LAW_FALLS_RULE is True
     probe = bench_module("probe_ripple_before_position_law")
     doc94, f94, ex94, s94 = probe_lanes(probe, "diagnose_ripple_before_position_law_round94_lane_*.json", lanes="abc")
-    doc95, f95, ex95, s95 = probe_lanes(probe, "diagnose_ripple_where_law_falls_round95_lane_*.json", lanes="acdefghijk")
+    doc95, f95, ex95, s95 = probe_lanes(probe, "diagnose_ripple_where_law_falls_round95_lane_*.json", lanes="acdefghijkl")
     # drawn before the fold, which took 6346 and 37278 out of the touchable rows (6346 is now a control row)
     touchable = probe.kept_keys("loop", probe.touchable)
     lane_a, lane_c = f94[0][1]["keys_examined"], f94[2][1]["keys_examined"]
@@ -122,7 +122,8 @@ def test_kept_and_its_tables_are_its_jsons():
     assert f95[6][1]["keys_examined"] == [k for k in touchable if 39000 <= k < 39400] == [39040, 39060]
     assert f95[7][1]["keys_examined"] == [k for k in touchable if 39400 <= k < 39600] == [39521]
     assert f95[8][1]["keys_examined"] == [k for k in touchable if 39600 <= k < 39800] == [39632]
-    assert f95[9][1]["keys_examined"] == [k for k in touchable if k >= 39800] == [39808]     # 40000-40199: none
+    assert f95[9][1]["keys_examined"] == [k for k in touchable if 39800 <= k < 40800] == [39808]     # 40000-40799: none
+    assert f95[10][1]["keys_examined"] == [k for k in touchable if k >= 40800] == [40841]
     assert probe.examined_keys([f for f, _ in f94[:1]]) == lane_a
     assert len(ex94["testbench"]) == 150 and [t for t in f94[1][1]["touched"]] == []
     assert s94["wrong_gained"] == [16004] and s94["wrong_lost"] == [37278]
