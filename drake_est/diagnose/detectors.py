@@ -595,6 +595,57 @@ def change_point(jd, r, min_frac=0.1, smooth_alternative=False, energy_cols=None
                            energy_cols)
 
 
+def joint_split_costs(X, C, y, min_len: int) -> np.ndarray:
+    """Residual sum of squares of y ~ [X, C 1(row >= k)] at each split k = 0..N of the N rows (in time order), X and
+    the switched columns C fitted jointly by least squares ((7.8) with one change, beside the rest of a model rather
+    than on its residual); inf for the splits with a segment shorter than ``min_len`` rows or a singular system.
+    With Q an orthonormal basis of X, each split's cost is RSS_X - b_k^T G_k^-1 b_k, where G_k = C_k^T (I - Q Q^T) C_k
+    and b_k = C_k^T (y - Q Q^T y) come from suffix sums over the rows (one QR and a 2 x 2 solve per split)."""
+    X = np.asarray(X, float)
+    C = np.asarray(C, float)
+    y = np.asarray(y, float)
+    n, c = C.shape
+    out = np.full(n + 1, np.inf)
+    lo, hi = max(int(min_len), 1), n - max(int(min_len), 1)
+    if hi < lo:
+        return out
+    Q, _ = np.linalg.qr(X, mode="reduced")
+    ry = y - Q @ (Q.T @ y)
+    rss_x = float(ry @ ry)
+
+    def suffix(a):
+        return np.concatenate([np.cumsum(a[::-1], axis=0)[::-1], np.zeros((1,) + a.shape[1:])])
+
+    QC = suffix(Q[:, :, None] * C[:, None, :])                        # (n + 1, p, c): Q^T C_k
+    G = suffix(C[:, :, None] * C[:, None, :]) - np.einsum("kpc,kpd->kcd", QC, QC)
+    b = suffix(C * ry[:, None])
+    ks = np.arange(lo, hi + 1)
+    Gk, bk = G[ks], b[ks]
+    tr = np.trace(Gk, axis1=1, axis2=2)
+    ok = np.abs(np.linalg.det(Gk)) > 1e-12 * np.maximum(tr, 1e-300) ** c
+    if ok.any():
+        sol = np.linalg.solve(Gk[ok], bk[ok][:, :, None])[:, :, 0]
+        out[ks[ok]] = np.maximum(rss_x - np.sum(bk[ok] * sol, axis=1), 0.0)
+    return out
+
+
+def change_point_beside(jd, X, r_p, min_frac=0.1, smooth_alternative=False, energy_cols=None):
+    """An abrupt change of joint ``jd``'s Coulomb and viscous friction (Ch. 7) whose switch is chosen jointly with
+    the rest of a model (:func:`joint_split_costs` on the training rows: the joint's measured torque ``jd.y`` on ``X``,
+    the model's other columns at the used rows, and [qd, sign(qd)] after the switch) rather than on the model's
+    residual, where the rest of the model, fitted without the change, has taken part of the step (loop spec 41128: a
+    ripple of 64 coefficients fitted before the change holds part of it, and the change found on its residual sits at
+    44.1 s beside the generator's 63.0 s).  ``r_p``: the change's partial residual at the used rows (its segments'
+    parameters, evidence only).  None where no split identifies both segments (:func:`change_at_split`)."""
+    tr = jd.train
+    v = jd.v[jd.rows]
+    C = np.column_stack([v, _sgn(v)])[tr]
+    costs = joint_split_costs(np.asarray(X, float)[tr], C, jd.y[tr], change_min_length(int(tr.sum()), min_frac))
+    if not np.isfinite(costs).any():
+        return None
+    return change_at_split(jd, r_p, int(np.argmin(costs)), None, smooth_alternative, energy_cols)
+
+
 def change_at_split(jd, r, k, seg_params=None, smooth_alternative=False, energy_cols=None):
     """The abrupt-change candidate of :func:`change_point` with its switch between training rows ``k - 1`` and ``k``
     of joint ``jd`` (``r``: the residual at the used rows; ``seg_params``: the segments' [kv, kc] on it, fitted here

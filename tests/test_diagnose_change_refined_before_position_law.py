@@ -1,0 +1,90 @@
+"""The hundredth round: an abrupt change whose switch is chosen again jointly with the rest of the model when a round
+accepts a law of its joint's position beside it, kept where the law then falls
+(``core.change_refined_before_position_law``, ``core.CHANGE_REFINED_WHERE_LAW_FALLS_RULE``; rule file
+``benchmarks/results/diagnose_change_refined_before_position_law_round100_rule.txt``)."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from drake_est.diagnose import core
+from drake_est.diagnose import detectors as det
+
+
+def test_joint_split_costs_are_those_of_each_split_fitted_on_its_own():
+    """At every split the cost is the RSS of y on [X, C after the split] by least squares, inf for segments shorter
+    than ``min_len``; the least-cost split of a step planted beside columns that partly fit it is the planted one."""
+    rng = np.random.default_rng(100)
+    n, min_len = 120, 15
+    t = np.linspace(0.0, 1.0, n)
+    X = np.column_stack([np.ones(n), np.sin(6 * t), np.cos(6 * t), t])
+    v = rng.normal(size=n)
+    C = np.column_stack([v, np.sign(v)])
+    y = X @ rng.normal(size=4) + (t >= t[70]) * (C @ np.array([0.8, 1.5])) + 0.05 * rng.normal(size=n)
+    got = det.joint_split_costs(X, C, y, min_len)
+    assert got.shape == (n + 1,) and np.isinf(got[:min_len]).all() and np.isinf(got[n - min_len + 1:]).all()
+    for k in range(min_len, n - min_len + 1):
+        A = np.column_stack([X, C * (np.arange(n) >= k)[:, None]])
+        e = y - A @ np.linalg.lstsq(A, y, rcond=None)[0]
+        assert got[k] == pytest.approx(float(e @ e), rel=1e-8, abs=1e-10)
+    assert int(np.argmin(got)) == 70
+    assert np.isinf(det.joint_split_costs(X, C, y, n)).all()      # no split leaves two segments that long
+
+
+def test_off_or_out_of_its_case_it_leaves_the_model(monkeypatch):
+    """Switch off, a shared law, a finding that is no law of position, or no change of the law's joint in the model:
+    the model and fit come back as they were, with nothing moved and nothing fitted."""
+    law = SimpleNamespace(effect="position_dependent_load", joint=1, shared=False)
+    change = SimpleNamespace(effect="abrupt_change", joint=1, shared=False)
+    model, fit = SimpleNamespace(exts=[change, law]), object()
+    monkeypatch.setattr(core, "CHANGE_REFINED_WHERE_LAW_FALLS_RULE", False)
+    assert core.change_refined_before_position_law(None, model, fit, None, law) == (model, fit, [])
+    monkeypatch.setattr(core, "CHANGE_REFINED_WHERE_LAW_FALLS_RULE", True)
+    cases = [(model, SimpleNamespace(effect="position_dependent_load", joint=1, shared=True)),
+             (model, SimpleNamespace(effect="motor_position_ripple", joint=1, shared=False)),
+             (SimpleNamespace(exts=[SimpleNamespace(effect="abrupt_change", joint=2, shared=False), law]), law),
+             (SimpleNamespace(exts=[law]), law)]
+    for m, ext in cases:
+        assert core.change_refined_before_position_law(None, m, fit, None, ext) == (m, fit, [])
+
+
+def test_probe_touchable_and_control():
+    """The probe's screen: an abrupt change and a law of position among the findings, named or set aside; the control
+    draws 100 rows that name a change and no law of position, the same keys on every call, none of them touchable."""
+    from conftest import bench_module
+    probe = bench_module("probe_change_refined_before_position_law")
+    assert probe.touchable({"got": "abrupt_change+motor_position_ripple+position_dependent_load"})
+    assert probe.touchable({"got": "abrupt_change", "set_aside": ["position_dependent_friction"]})
+    assert probe.touchable({"got": "ambiguous(abrupt_change|energy_dependent_friction)+position_dependent_load"})
+    assert probe.touchable({"got": "position_dependent_load", "set_aside": ["abrupt_change"]})
+    assert not probe.touchable({"got": "abrupt_change+motor_position_ripple", "set_aside": ["stribeck"]})
+    assert not probe.touchable({"got": "position_dependent_load"})
+    assert probe.control({"got": "abrupt_change+motor_position_ripple"})
+    assert not probe.control({"got": "abrupt_change", "set_aside": ["position_dependent_load"]})
+    keys = probe.control_keys("loop")
+    assert len(keys) == probe.CONTROL_ROWS and keys == sorted(set(keys)) == probe.control_keys("loop")
+    assert not set(keys) & set(probe.kept_keys("loop", probe.touchable))
+
+
+@pytest.fixture(scope="module")
+def design_case():
+    """Fresh spec 41128 (an abrupt change at 63.0 s beside a motor ripple at 100 Hz, Student-t noise) diagnosed with
+    the hundredth round's switch off and on: (module, spec, truth, off, on, None)."""
+    from conftest import closed_loop_off_and_on
+    return closed_loop_off_and_on(41128, "CHANGE_REFINED_WHERE_LAW_FALLS_RULE")
+
+
+def test_spec_41128_loses_the_load(design_case):
+    """Off: the change sits at 44.1 s, 19 s before the generator's switch, and a load takes the misplaced switch's
+    misfit (a wrong name).  On: the switch chosen jointly with the ripple lies within the training rows' gap around
+    the generator's (62.9-68.7 s), the load falls, and the change and the ripple are named."""
+    mod, spec, truth, off, on, _ = design_case
+    t_true = truth["abrupt_change"]["t_change"]
+    assert mod.judge(spec, off)["wrong"] == ["position_dependent_load"]
+    ch_off = next(f for f in off["findings"] if f["effect"] == "abrupt_change")
+    assert abs(ch_off["parameters"]["t_change_s"] - t_true) > 15
+    j = mod.judge(spec, on)
+    assert j["wrong"] == [] and j["missed"] == [] and j["correct"]
+    assert sorted(f["effect"] for f in on["findings"]) == ["abrupt_change", "motor_position_ripple"]
+    ch = next(f for f in on["findings"] if f["effect"] == "abrupt_change")
+    assert 62.9 <= ch["parameters"]["t_change_s"] <= 68.7 and abs(ch["parameters"]["t_change_s"] - t_true) < 3
