@@ -88,3 +88,39 @@ def test_spec_41128_loses_the_load(design_case):
     assert sorted(f["effect"] for f in on["findings"]) == ["abrupt_change", "motor_position_ripple"]
     ch = next(f for f in on["findings"] if f["effect"] == "abrupt_change")
     assert 62.9 <= ch["parameters"]["t_change_s"] <= 68.7 and abs(ch["parameters"]["t_change_s"] - t_true) < 3
+
+
+def test_kept_and_its_table_is_its_jsons():
+    """Kept: the switch is on; lanes a and b examined every touchable closed-loop row as drawn (41128 among them),
+    lane c every touchable open-loop row, lane d the 100 control rows; the rule acted in 16004 (the same names) and
+    41128 (mended) only; no row gained a wrong name, a finding on a null log or lost `unexplained` or an outright
+    name, the missed effects did not rise, every rule-on row is its log's kept row (the two folded), and the docs'
+    table holds each lane's row as --against-off-rows prints it."""
+    from conftest import REFOLDED_ROUND_100, bench_module, probe_lanes, probe_results
+    assert core.CHANGE_REFINED_WHERE_LAW_FALLS_RULE is True
+    probe = bench_module("probe_change_refined_before_position_law")
+    doc, files, examined, s = probe_lanes(probe, "diagnose_change_refined_before_position_law_round100_lane_*.json",
+                                          lanes="abcd")
+    keys = [d["keys_examined"] for _, d in files]
+    lane_ab = sorted(keys[0] + keys[1])
+    assert len(keys[0]) == len(keys[1]) == 276 and lane_ab == sorted(set(lane_ab)) and 41128 in keys[0]
+    # as drawn: the touchable kept rows below the fresh blocks from 41200 on; of the two folded rows 16004 no longer
+    # sets a position friction aside and left the screen, 41128 still sets one aside
+    touchable = probe.kept_keys("loop", probe.touchable)
+    assert set(lane_ab) - {16004} == {k for k in touchable if k < 41200}
+    assert REFOLDED_ROUND_100 == {16004, 41128} and REFOLDED_ROUND_100 & set(touchable) == {41128}
+    assert keys[2] == probe.kept_keys("testbench", probe.touchable) and files[2][1]["family"] == "testbench"
+    kept = {k: r for (f, _, k), (_, r) in bench_module("bench_diagnose_testbench").kept_rows_naming("any").items()
+            if f == "loop"}
+    assert len(keys[3]) == probe.CONTROL_ROWS and all(probe.control(kept[k]) for k in keys[3])
+    assert not set(keys[3]) & set(lane_ab)
+    assert [t["k"] for _, d in files for t in d["touched"]] == [16004, 41128]
+    moved = {t["k"]: t["refined"][0]["moved"][0] for _, d in files for t in d["touched"]}
+    assert moved[41128]["from_t_change_s"] == pytest.approx(44.095) and 62.9 <= moved[41128]["to_t_change_s"] <= 68.7
+    assert abs(moved[16004]["to_t_change_s"] - 54.356) < 0.05 < abs(moved[16004]["from_t_change_s"] - 54.356)
+    assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == s["outright_lost"] == []
+    assert s["wrong_lost"] == [41128] and s["missed_on"] <= s["missed_off"]
+    _, _, differences = probe_results("diagnose_change_refined_before_position_law_round100_lane_*.json")
+    for f, d in files:
+        assert differences(d) == [], f.name
+    assert "The rule acted in two logs of 659." in " ".join(doc.split())

@@ -1056,7 +1056,7 @@ def ripple_refined_before_position_law(prep, model, fit, sigma, ext, alpha=ALPHA
 #: the hundredth round's rule (:func:`change_refined_before_position_law`): when a round accepts a law of a joint's
 #: position beside an abrupt change of that joint, the change's switch is chosen again jointly with the rest of the
 #: model without the law, and the refined change kept where the law is then no longer significant
-CHANGE_REFINED_WHERE_LAW_FALLS_RULE = False
+CHANGE_REFINED_WHERE_LAW_FALLS_RULE = True
 
 
 def change_refined_before_position_law(prep, model, fit, sigma, ext, alpha=ALPHA, min_gain=MIN_GAIN):
