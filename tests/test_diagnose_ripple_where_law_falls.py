@@ -77,13 +77,16 @@ def test_spec_37278_loses_the_load(design_case):
 def test_spec_16004_why_the_ninety_fourth_round_was_not_kept():
     """16004 (an abrupt change beside a ripple at 37.56 cycles/rad, 250 Hz): the ninety-fourth round's rule moves the
     ripple a little, and the redo names a position friction the rule-off search sets aside; the ninety-fifth round's
-    rule leaves it alone (the friction still stands given the refined ripple), so it is as with both switches off."""
+    rule leaves it alone (the friction still stands given the refined ripple), so it is as with both switches off.
+    With the hundredth round's switch off, as the rounds ran (on, the change's switch refined beside the ripple takes
+    the friction's misfit first: tests/test_diagnose_change_refined_before_position_law.py)."""
     from conftest import closed_loop_case
     from drake_est.diagnose import diagnose
     mod, spec, log, truth = closed_loop_case(16004)
     mp = pytest.MonkeyPatch()
     got = {}
     try:
+        mp.setattr(core, "CHANGE_REFINED_WHERE_LAW_FALLS_RULE", False)
         for name, s94, s95 in (("off", False, False), ("94", True, False), ("95", False, True)):
             mp.setattr(core, "RIPPLE_REFINED_BEFORE_POSITION_LAW_RULE", s94)
             mp.setattr(core, "RIPPLE_REFINED_WHERE_LAW_FALLS_RULE", s95)
@@ -106,11 +109,12 @@ def test_kept_and_its_tables_are_its_jsons():
     assert core.RIPPLE_REFINED_WHERE_LAW_FALLS_RULE is True
     probe = bench_module("probe_ripple_before_position_law")
     doc94, f94, ex94, s94 = probe_lanes(probe, "diagnose_ripple_before_position_law_round94_lane_*.json", lanes="abc")
-    doc95, f95, ex95, s95 = probe_lanes(probe, "diagnose_ripple_where_law_falls_round95_lane_*.json", lanes="acdefghijkl")
-    # drawn before the fold, which took 6346 and 37278 out of the touchable rows (6346 is now a control row)
+    doc95, f95, ex95, s95 = probe_lanes(probe, "diagnose_ripple_where_law_falls_round95_lane_*.json", lanes="acdefghijklm")
+    # drawn before the fold, which took 6346 and 37278 out of the touchable rows (6346 is now a control row), and
+    # before the hundredth round's, which took 16004 out (no position friction set aside any more)
     touchable = probe.kept_keys("loop", probe.touchable)
     lane_a, lane_c = f94[0][1]["keys_examined"], f94[2][1]["keys_examined"]
-    assert lane_a == f95[0][1]["keys_examined"] == sorted([k for k in touchable if k < 37400] + [6346, 37278])
+    assert lane_a == f95[0][1]["keys_examined"] == sorted([k for k in touchable if k < 37400] + [6346, 16004, 37278])
     assert lane_c == f95[1][1]["keys_examined"] == sorted(set(lane_c)) and len(lane_c) == probe.CONTROL_ROWS
     kept = {k: r for (f, _, k), (_, r) in bench_module("bench_diagnose_testbench").kept_rows_naming("any").items()
             if f == "loop"}
@@ -123,7 +127,8 @@ def test_kept_and_its_tables_are_its_jsons():
     assert f95[7][1]["keys_examined"] == [k for k in touchable if 39400 <= k < 39600] == [39521]
     assert f95[8][1]["keys_examined"] == [k for k in touchable if 39600 <= k < 39800] == [39632]
     assert f95[9][1]["keys_examined"] == [k for k in touchable if 39800 <= k < 40800] == [39808]     # 40000-40799: none
-    assert f95[10][1]["keys_examined"] == [k for k in touchable if k >= 40800] == [40841]
+    assert f95[10][1]["keys_examined"] == [k for k in touchable if 40800 <= k < 41000] == [40841]
+    assert f95[11][1]["keys_examined"] == [k for k in touchable if k >= 41000] == [41128]     # folded by the hundredth round
     assert probe.examined_keys([f for f, _ in f94[:1]]) == lane_a
     assert len(ex94["testbench"]) == 150 and [t for t in f94[1][1]["touched"]] == []
     assert s94["wrong_gained"] == [16004] and s94["wrong_lost"] == [37278]
