@@ -19,6 +19,8 @@ frequency on some joint (``--screen``: preparation and the nominal fit, no diagn
     python benchmarks/probe_ripple_split_locked.py --keys screened S0.json S1.json > ks.txt
     OPENBLAS_NUM_THREADS=1 python benchmarks/probe_ripple_split_locked.py OUT.json $(cat ks.txt)
     python benchmarks/probe_ripple_split_locked.py --against-off-rows OUT.json     # the docs' table
+
+``--min-share=0.2`` before ``--screen`` lists the joints from a share of 0.2 up, near the rule's threshold of 0.5.
 """
 from __future__ import annotations
 
@@ -60,10 +62,17 @@ def touchable_keys(family: str = "loop", results_dir=None) -> list:
 keys_cli = functools.partial(probe_state_check_speeds.keys_cli, candidate_keys=touchable_keys, name="touchable")
 
 
+#: ``--min-share=X``: the share of the nominal training residual from which the screen lists a joint (default: the
+#: rule's own, ``core.SPLIT_LOCKED_SHARE``); a lower one lists the joints near the rule's threshold, whose logs a lane
+#: then diagnoses with the rule on (the screen reads the residual of the log as prepared, the rule the one after the
+#: search's outlier screen and inertia backfit)
+MIN_SHARE = None
+
+
 def locked_joints(family: str, spec: dict) -> dict:
     """{joint: :func:`core.split_locked_disturbance`} of the log of ``spec`` (of ``family``) as prepared for its kept
-    row, on the nominal fit's residual (no diagnosis): the joints the rule can mark; ``{"refused": message}`` when
-    preparation refuses the log."""
+    row, on the nominal fit's residual (no diagnosis): the joints the rule can mark (with :data:`MIN_SHARE`, those
+    whose share reaches it); ``{"refused": message}`` when preparation refuses the log."""
     from drake_est.diagnose import core
     prep = probe_state_check_speeds.prepared_log(family, spec)
     if isinstance(prep, dict):
@@ -71,7 +80,7 @@ def locked_joints(family: str, spec: dict) -> dict:
     fit0 = core.Model(prep, []).fit()
     out = {}
     for j in prep.joints:
-        got = core.split_locked_disturbance(prep, j, core._residual(prep, fit0, j))
+        got = core.split_locked_disturbance(prep, j, core._residual(prep, fit0, j), min_share=MIN_SHARE)
         if got is not None:
             out[str(j)] = got
     return out
@@ -92,9 +101,29 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 
 def main(argv=None):
-    probe_state_check_speeds.screen_probe_main(list(sys.argv[1:] if argv is None else argv), __doc__, keys_cli, run,
-                                               measure=locked_joints, what=WHAT,
-                                               desc="prepare (nominal fit, locked sinusoid)")
+    global MIN_SHARE
+    argv = list(sys.argv[1:] if argv is None else argv)
+    min_share = None
+    for a in [a for a in argv if a.startswith("--min-share=")]:
+        try:
+            min_share = float(a.split("=", 1)[1])
+        except ValueError:
+            raise SystemExit(f"--min-share: expected a number, got {a.split('=', 1)[1]!r}")
+        if not 0.0 <= min_share <= 1.0:
+            raise SystemExit(f"--min-share: expected a share in [0, 1], got {min_share}")
+        argv.remove(a)
+    if min_share is not None and argv[:1] != ["--screen"]:
+        raise SystemExit("--min-share goes with --screen (the rule itself always runs at core.SPLIT_LOCKED_SHARE)")
+    what, extra = WHAT, {}
+    if min_share is not None:
+        what = f"a joint where a sinusoid at the split's locked frequency holds {min_share} of the residual or more"
+        extra = {"extra": {"min_share": min_share}}
+    MIN_SHARE = min_share
+    try:
+        probe_state_check_speeds.screen_probe_main(argv, __doc__, keys_cli, run, measure=locked_joints, what=what,
+                                                   desc="prepare (nominal fit, locked sinusoid)", **extra)
+    finally:
+        MIN_SHARE = None
 
 
 if __name__ == "__main__":

@@ -91,19 +91,21 @@ def fast_held_out_rows(family: str, spec: dict) -> dict:
 
 
 def screen(out_path: str, keys, family: str = "loop", lane: str = "0/1", measure=None, what: str = FAST,
-           desc: str = "prepare (fast held-out rows)") -> dict:
+           desc: str = "prepare (fast held-out rows)", extra: dict | None = None) -> dict:
     """``measure(family, spec)`` (:func:`fast_held_out_rows` unless given; a dict, empty when the log has nothing to
     list, ``{"refused": message}`` when preparation refuses it) of the logs ``keys`` in lane ``I/N`` (every N-th from
     I), written to ``out_path`` every 50 logs and at the end: ``{"family", "lane", "logs", "keys_screened",
     "touched": [[k, {joint: ...}]], "refused": [[k, message]]}``; ``what``: what a listed log has, for the summary
-    line.  Also the ninety-third round's screen (``probe_load_untested_direction.py``)."""
+    line; ``extra``: more keys for the JSON, e.g. a threshold the screen ran with.  Also the ninety-third round's
+    screen (``probe_load_untested_direction.py``)."""
     measure = fast_held_out_rows if measure is None else measure
     from drake_est.progress import progress
     i, n = B._lane(lane)
     kept_rows(family, keys)     # exits when a key has no kept row
     mine = list(keys)[i::n]
     specs = (B.loop_cases if family == "loop" else B.cases)(max(mine) + 1) if mine else []
-    res = {"family": family, "lane": f"{i}/{n}", "logs": 0, "keys_screened": [], "touched": [], "refused": []}
+    res = {"family": family, "lane": f"{i}/{n}", **(extra or {}), "logs": 0, "keys_screened": [], "touched": [],
+           "refused": []}
     for m, k in enumerate(progress(mine, desc=desc)):
         got = measure(family, specs[k])
         res["logs"] += 1

@@ -5,6 +5,7 @@ behind core.RIPPLE_BESIDE_SPLIT_LOCKED_DISTURBANCE)."""
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from drake_est.diagnose import core, diagnose, nominal
 from conftest import closed_loop_case
@@ -102,14 +103,26 @@ def test_kept_and_its_table_is_its_jsons():
     # screen g: the 18 of the fresh blocks 41200-41399, none listed
     assert len(screens["g"]["keys_screened"]) == 18 and min(screens["g"]["keys_screened"]) >= 41200
     assert screens["g"]["touched"] == []
-    fresh = fresh + sum((screens[x]["keys_screened"] for x in "def"), []) + screens["g"]["keys_screened"]
+    fresh = fresh + sum((screens[x]["keys_screened"] for x in "defg"), [])
     assert sorted(set(loop + fresh) - {40305}) == probe.touchable_keys("loop")
     assert screens["testbench"]["keys_screened"] == probe.touchable_keys("testbench")
     assert len(screens["testbench"]["keys_screened"]) == 22 and screens["testbench"]["touched"] == []
     assert all(d["refused"] == [] for d in screens.values())
     assert probe.screened_keys([root / f"diagnose_ripple_split_locked_round99_screen_{x}.json" for x in "01"]) == [40305]
-    doc, files, examined, s = probe_lanes(probe, "diagnose_ripple_split_locked_round99_lane_*.json", lanes="a")
-    assert examined["loop"] == {40305} and not examined["testbench"]
+    # the screens near the threshold (--min-share=0.2), run after the fresh blocks up to 41399 over every touchable
+    # row as it stood: they list 22596 alone (share 0.21), which lane b diagnosed with the rule on: not marked
+    near = {x: json.loads((root / f"diagnose_ripple_split_locked_round99_screen_near_{x}.json").read_text())
+            for x in ("0", "1", "testbench")}
+    assert all(d["min_share"] == 0.2 and d["refused"] == [] for d in near.values())
+    near_loop = sorted(k for x in "01" for k in near[x]["keys_screened"])
+    assert near_loop == [k for k in probe.touchable_keys("loop") if k < 41400] and len(near_loop) == 3701
+    assert near["testbench"]["keys_screened"] == probe.touchable_keys("testbench")
+    listed = [(k, j) for x in near for k, js in near[x]["touched"] for j in js.values()]
+    assert [k for k, _ in listed] == [22596]
+    assert 0.2 <= listed[0][1]["share_of_training_residual"] < core.SPLIT_LOCKED_SHARE
+    doc, files, examined, s = probe_lanes(probe, "diagnose_ripple_split_locked_round99_lane_*.json", lanes="ab")
+    assert files[1][1]["keys_examined"] == [22596] and files[1][1]["touched"] == []
+    assert examined["loop"] == {40305, 22596} and not examined["testbench"]
     assert_rule_mended_only("diagnose_ripple_split_locked_round99_lane_*.json", files, s, 40305)
     (m,) = files[0][1]["touched"][0]["marked"]
     assert abs(m["frequency_hz"] - 0.5) < 1e-3 and m["share_of_training_residual"] >= core.SPLIT_LOCKED_SHARE
@@ -117,3 +130,16 @@ def test_kept_and_its_table_is_its_jsons():
     assert "The rule marked a ripple in one log of 3,633" in flat
     rule = (root / "diagnose_ripple_split_locked_round99_rule.txt").read_text()
     assert "Keep only if" in rule and "40305 loses its wrong name" in rule
+
+
+def test_probe_min_share_is_checked_and_goes_with_the_screen():
+    """``--min-share`` must be a share in [0, 1] and only lowers the screen's threshold: with a rule lane it is refused,
+    and the probe's threshold is back to the rule's own afterwards."""
+    from conftest import bench_module
+    probe = bench_module("probe_ripple_split_locked")
+    for argv, msg in ((["--min-share=x", "--screen", "OUT.json", "2"], "expected a number"),
+                      (["--min-share=1.5", "--screen", "OUT.json", "2"], r"in \[0, 1\]"),
+                      (["--min-share=0.2", "OUT.json", "2"], "goes with --screen")):
+        with pytest.raises(SystemExit, match=msg):
+            probe.main(argv)
+        assert probe.MIN_SHARE is None
