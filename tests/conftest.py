@@ -133,10 +133,11 @@ REFOLDED_ROUND_96 = (refolded_rows("diagnose_beyond_training_positions_round96_l
 #: the keys whose kept rows the ninety-eighth round folded (its rule-on rows that differ from the rows kept before
 #: them): earlier rounds' screens were run on the rows as they were (17828 then named a law in time)
 REFOLDED_ROUND_98 = refolded_rows("diagnose_speed_curve_adc_guarded_round98_lane_*.json")
-#: the keys whose kept rows the hundredth round folded (its rule-on rows that differ from the rows kept before them):
-#: 41128 (mended) and 16004 (the same names; no position friction set aside, a shorter `unexplained` verdict), which
-#: earlier rounds' lanes and screens saw as they were
-REFOLDED_ROUND_100 = refolded_rows("diagnose_change_refined_before_position_law_round100_lane_*.json")
+#: the keys whose kept rows the hundredth round folded: 41128 (mended) and 16004 (the same names; no position friction
+#: set aside, a shorter `unexplained` verdict), which earlier rounds' lanes and screens saw as they were.  Its lanes
+#: were run again after the fold (the split costs' SVD basis), so their rule-on rows are the kept rows: the folded keys
+#: are those whose rule-off rows differ from them
+REFOLDED_ROUND_100 = refolded_rows("diagnose_change_refined_before_position_law_round100_lane_*.json", "rows_off")
 
 
 def probe_results(pattern: str):

@@ -29,6 +29,10 @@ def test_joint_split_costs_are_those_of_each_split_fitted_on_its_own():
         assert got[k] == pytest.approx(float(e @ e), rel=1e-8, abs=1e-10)
     assert int(np.argmin(got)) == 70
     assert np.isinf(det.joint_split_costs(X, C, y, n)).all()      # no split leaves two segments that long
+    # collinear columns (a repeated column, a sum of two) span no more than X: the same costs
+    Xc = np.column_stack([X, X[:, 1], X[:, 2] + X[:, 3]])
+    assert np.allclose(det.joint_split_costs(Xc, C, y, min_len)[min_len:n - min_len + 1], got[min_len:n - min_len + 1],
+                       rtol=1e-8)
 
 
 def test_off_or_out_of_its_case_it_leaves_the_model(monkeypatch):

@@ -599,8 +599,10 @@ def joint_split_costs(X, C, y, min_len: int) -> np.ndarray:
     """Residual sum of squares of y ~ [X, C 1(row >= k)] at each split k = 0..N of the N rows (in time order), X and
     the switched columns C fitted jointly by least squares ((7.8) with one change, beside the rest of a model rather
     than on its residual); inf for the splits with a segment shorter than ``min_len`` rows or a singular system.
-    With Q an orthonormal basis of X, each split's cost is RSS_X - b_k^T G_k^-1 b_k, where G_k = C_k^T (I - Q Q^T) C_k
-    and b_k = C_k^T (y - Q Q^T y) come from suffix sums over the rows (one QR and a 2 x 2 solve per split)."""
+    With Q an orthonormal basis of X's column space, each split's cost is RSS_X - b_k^T G_k^-1 b_k, where
+    G_k = C_k^T (I - Q Q^T) C_k and b_k = C_k^T (y - Q Q^T y) come from suffix sums over the rows (one SVD and a 2 x 2
+    solve per split).  Q holds the left singular vectors of X above a relative tolerance, so collinear columns of X
+    (which the model's fit holds apart with its ridge) do not project out directions X does not span."""
     X = np.asarray(X, float)
     C = np.asarray(C, float)
     y = np.asarray(y, float)
@@ -609,7 +611,9 @@ def joint_split_costs(X, C, y, min_len: int) -> np.ndarray:
     lo, hi = max(int(min_len), 1), n - max(int(min_len), 1)
     if hi < lo:
         return out
-    Q, _ = np.linalg.qr(X, mode="reduced")
+    U, sv, _ = np.linalg.svd(X, full_matrices=False)
+    tol = (sv[0] if sv.size else 0.0) * max(X.shape) * np.finfo(float).eps
+    Q = U[:, sv > tol]
     ry = y - Q @ (Q.T @ y)
     rss_x = float(ry @ ry)
 
