@@ -1020,28 +1020,46 @@ def ripple_refined_before_position_law(prep, model, fit, sigma, ext, alpha=ALPHA
     the model is left as it was (the ninety-fourth round's probe: loop spec 16004, an abrupt change beside a ripple at
     37.56 cycles/rad, whose ripple moved by 0.002 cycles/rad; the redo named a position friction that the rule-off
     search sets aside)."""
-    moved = []
     falls = RIPPLE_REFINED_WHERE_LAW_FALLS_RULE
-    if (not (RIPPLE_REFINED_BEFORE_POSITION_LAW_RULE or falls) or ext.shared
-            or ext.effect not in comp.POSITION_LAWS):
+    if not (RIPPLE_REFINED_BEFORE_POSITION_LAW_RULE or falls):
+        return model, fit, []
+
+    def refine(m0, f0, e, jd, r_p):
+        new = det.ripple_refined(jd, r_p, e)
+        return None if new is e else (
+            new, {"refined_before_position_law_from_frequencies_per_arm_rad": list(e.spec["frequencies_per_arm_rad"])})
+
+    return _refined_before_position_law(prep, model, fit, sigma, ext, "motor_position_ripple", refine, falls, alpha,
+                                        min_gain)
+
+
+def _refined_before_position_law(prep, model, fit, sigma, ext, effect, refine, falls, alpha, min_gain):
+    """The refinement of the ninety-fourth, ninety-fifth and hundredth rounds: when a round has just accepted the law
+    of position ``ext``, each unshared extension of ``effect`` on its joint is estimated again on its partial residual
+    of the model without the law, ``refine(m0, f0, e, jd, r_p)`` -> (new extension, its evidence) or None, and
+    replaces the old one when that lowers the model's training residual of the joint.  With ``falls`` the refined
+    extensions are kept only when the law, tested again on the refined model without it (:func:`_evaluate`), is no
+    longer significant.  Returns ``(model, fit, moved)`` as the backfits do."""
+    moved = []
+    if ext.shared or ext.effect not in comp.POSITION_LAWS:
         return model, fit, moved
     j = ext.joint
-    ripples = [e for e in model.exts if e.effect == "motor_position_ripple" and not e.shared and e.joint == j]
-    if not ripples:
+    olds = [e for e in model.exts if e.effect == effect and not e.shared and e.joint == j]
+    if not olds:
         return model, fit, moved
     jd = prep.joints[j]
     m0 = Model(prep, [x for x in model.exts if x is not ext])
     f0 = m0.fit(sigma)
-    for e in ripples:
+    for e in olds:
         r_p = jd.y - f0.pred[j] + e.cols[j] @ m0.coef_slices(f0, j)[e.effect]
-        new = det.ripple_refined(jd, r_p, e)
-        if new is e:
+        got = refine(m0, f0, e, jd, r_p)
+        if got is None:
             continue
+        new, evidence = got
         m1 = Model(prep, [new if x is e else x for x in m0.exts])
         f1 = m1.fit(sigma)
         if _train_rss(prep, f1, j) < _train_rss(prep, f0, j):
-            new.evidence["refined_before_position_law_from_frequencies_per_arm_rad"] = list(
-                e.spec["frequencies_per_arm_rad"])
+            new.evidence.update(evidence)
             moved.append((j, e, new))
             m0, f0 = m1, f1
     if not moved:
@@ -1073,37 +1091,20 @@ def change_refined_before_position_law(prep, model, fit, sigma, ext, alpha=ALPHA
     training residual of the joint and the law, tested again on the refined model without it (:func:`_evaluate`),
     is no longer significant: the refinement then took what the law explained.  Returns ``(model, fit, moved)`` as
     the backfits do; a move runs the law's round again on the refined model (:data:`PERIODIC_REDOS`)."""
-    moved = []
-    if not CHANGE_REFINED_WHERE_LAW_FALLS_RULE or ext.shared or ext.effect not in comp.POSITION_LAWS:
-        return model, fit, moved
-    j = ext.joint
-    changes = [e for e in model.exts if e.effect == "abrupt_change" and not e.shared and e.joint == j]
-    if not changes:
-        return model, fit, moved
-    jd = prep.joints[j]
-    m0 = Model(prep, [x for x in model.exts if x is not ext])
-    f0 = m0.fit(sigma)
-    drift = any(x.effect == "energy_dependent_friction" and x.joint == j for x in m0.exts)
-    for e in changes:
+    if not CHANGE_REFINED_WHERE_LAW_FALLS_RULE:
+        return model, fit, []
+
+    def refine(m0, f0, e, jd, r_p):
+        j = e.joint
+        drift = any(x.effect == "energy_dependent_friction" and x.joint == j for x in m0.exts)
         rest = Model(prep, [x for x in m0.exts if x is not e])
-        r_p = jd.y - f0.pred[j] + e.cols[j] @ m0.coef_slices(f0, j)[e.effect]
         new = det.change_point_beside(jd, rest.design_with_shared(j), r_p, smooth_alternative=drift,
                                       energy_cols=_energy_cols(m0, j))
         if new is None or new.spec["t_change"] == e.spec["t_change"]:
-            continue
-        m1 = Model(prep, [new if x is e else x for x in m0.exts])
-        f1 = m1.fit(sigma)
-        if _train_rss(prep, f1, j) < _train_rss(prep, f0, j):
-            new.evidence["refined_before_position_law_from_t_change_s"] = float(e.spec["t_change"])
-            moved.append((j, e, new))
-            m0, f0 = m1, f1
-    if not moved:
-        return model, fit, moved
-    if _evaluate(prep, m0, f0, sigma, ext, alpha, min_gain, {})[1]["significant"]:
-        return model, fit, []
-    swap = {id(old): new for _, old, new in moved}
-    model = Model(prep, [swap.get(id(x), x) for x in model.exts])
-    return model, model.fit(sigma), moved
+            return None
+        return new, {"refined_before_position_law_from_t_change_s": float(e.spec["t_change"])}
+
+    return _refined_before_position_law(prep, model, fit, sigma, ext, "abrupt_change", refine, True, alpha, min_gain)
 
 
 #: how many times one search runs a round again after the Stribeck backfit reshaped the law (:func:`_search`)
@@ -3736,8 +3737,9 @@ def _search(prep, max_findings, alpha, min_gain, blocked=frozenset()):
                 reshaped += moved
         stribeck_redo = redone < STRIBECK_REDOS and any(old.effect == "stribeck" for _, old, _ in reshaped)
         periodic_redo = (not stribeck_redo and redone_periodic < PERIODIC_REDOS and ext.effect in PERIODIC_REDO_LAWS
-                         and any(old.effect in PERIODIC_REDO_MOVED or "refined_before_position_law_from_t_change_s"
-                                 in new.evidence for _, old, new in reshaped))
+                         # (a change in ``reshaped`` comes from its refinement: the change backfit's moves are not
+                         # reshapes)
+                         and any(old.effect in PERIODIC_REDO_MOVED + ("abrupt_change",) for _, old, _ in reshaped))
         if stribeck_redo or periodic_redo:
             # Stribeck: the round chose this finding against a Stribeck shape that the finding itself has now changed
             # (the shape bent by what it explains).  Disturbance (or ripple, whose frequency moves alike): the round
