@@ -29,14 +29,13 @@ from __future__ import annotations
 import os
 import sys
 
-import numpy as np
-
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
 from probe_position_friction_halves import row_class  # noqa: E402,F401
-from probe_ripple_before_position_law import _holds, examined_keys  # noqa: E402,F401
-from probe_runner import keys_args, kept_keys, probe_main, run_rule_probe  # noqa: E402
+from probe_ripple_before_position_law import (  # noqa: E402,F401
+    _holds, drawn_control_keys, examined_keys, touchable_or_control_keys_cli)
+from probe_runner import kept_keys, probe_main, run_rule_probe  # noqa: E402
 
 from drake_est.diagnose.competition import POSITION_LAWS  # noqa: E402
 
@@ -61,26 +60,13 @@ def control(r: dict) -> bool:
 def control_keys(family: str = "loop", results_dir=None) -> list:
     """The control: for the closed loop :data:`CONTROL_ROWS` keys drawn (seed :data:`CONTROL_SEED`) from the
     :func:`control` rows, sorted; for another family every kept row."""
-    if family != "loop":
-        return kept_keys(family, lambda r: True, results_dir)
-    pool = kept_keys(family, control, results_dir)
-    rng = np.random.default_rng(CONTROL_SEED)
-    return sorted(int(k) for k in rng.choice(pool, size=min(CONTROL_ROWS, len(pool)), replace=False))
+    return drawn_control_keys(family, control, CONTROL_ROWS, CONTROL_SEED, results_dir)
 
 
 def keys_cli(argv) -> None:
     """``--keys touchable [--family=F]``, ``--keys control [--family=F]`` or ``--keys examined JSON...``: print those
     keys."""
-    family, rest = keys_args(argv)
-    if rest == ["touchable"]:
-        keys = kept_keys(family, touchable)
-    elif rest == ["control"]:
-        keys = control_keys(family)
-    elif rest[:1] == ["examined"] and len(rest) > 1:
-        keys = examined_keys(rest[1:])
-    else:
-        raise SystemExit("--keys: expected 'touchable', 'control' or 'examined JSON...'")
-    print(" ".join(str(k) for k in keys))
+    touchable_or_control_keys_cli(argv, touchable, control_keys)
 
 
 def _record(got, a, kw):

@@ -66,14 +66,20 @@ def control(r: dict) -> bool:
     return RIPPLE in r["got"] and not any(_holds(r, p) for p in POSITION_LAWS)
 
 
-def control_keys(family: str = "loop", results_dir=None) -> list:
-    """The control: for the closed loop :data:`CONTROL_ROWS` keys drawn (seed :data:`CONTROL_SEED`) from the
-    :func:`control` rows, sorted; for another family every kept row."""
+def drawn_control_keys(family: str, control, rows: int, seed: int, results_dir=None) -> list:
+    """A probe's control: for the closed loop ``rows`` keys drawn (seed ``seed``) from the kept rows where
+    ``control(row)`` holds, sorted; for another family every kept row (this probe's and the hundredth round's)."""
     if family != "loop":
         return kept_keys(family, lambda r: True, results_dir)
     pool = kept_keys(family, control, results_dir)
-    rng = np.random.default_rng(CONTROL_SEED)
-    return sorted(int(k) for k in rng.choice(pool, size=min(CONTROL_ROWS, len(pool)), replace=False))
+    rng = np.random.default_rng(seed)
+    return sorted(int(k) for k in rng.choice(pool, size=min(rows, len(pool)), replace=False))
+
+
+def control_keys(family: str = "loop", results_dir=None) -> list:
+    """The control: for the closed loop :data:`CONTROL_ROWS` keys drawn (seed :data:`CONTROL_SEED`) from the
+    :func:`control` rows, sorted; for another family every kept row."""
+    return drawn_control_keys(family, control, CONTROL_ROWS, CONTROL_SEED, results_dir)
 
 
 def examined_keys(paths) -> list:
@@ -89,9 +95,10 @@ def examined_keys(paths) -> list:
     return keys
 
 
-def keys_cli(argv) -> None:
-    """``--keys touchable [--family=F]``, ``--keys control [--family=F]`` or ``--keys examined JSON...``: print those
-    keys."""
+def touchable_or_control_keys_cli(argv, touchable, control_keys) -> None:
+    """``--keys touchable [--family=F]`` (the kept rows where ``touchable(row)`` holds), ``--keys control
+    [--family=F]`` (``control_keys(family)``) or ``--keys examined JSON...``: print those keys (this probe's and the
+    hundredth round's)."""
     family, rest = keys_args(argv)
     if rest == ["touchable"]:
         keys = kept_keys(family, touchable)
@@ -102,6 +109,12 @@ def keys_cli(argv) -> None:
     else:
         raise SystemExit("--keys: expected 'touchable', 'control' or 'examined JSON...'")
     print(" ".join(str(k) for k in keys))
+
+
+def keys_cli(argv) -> None:
+    """``--keys touchable``, ``--keys control`` or ``--keys examined JSON...`` of this probe
+    (:func:`touchable_or_control_keys_cli`)."""
+    touchable_or_control_keys_cli(argv, touchable, control_keys)
 
 
 def _record(got, a, kw):
