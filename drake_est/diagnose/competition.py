@@ -575,6 +575,29 @@ def state_blocks(prep, j, kernels: int = STATE_KERNELS) -> dict:
     return out
 
 
+#: Gaussian kernels in |qd| of :func:`filter_slope_columns`
+FILTER_SLOPE_KERNELS = 6
+
+
+def filter_slope_columns(prep, j, kernels: int = FILTER_SLOPE_KERNELS):
+    """Columns (at the joint's used rows) of the derivative filter's velocity error passed through a friction curve
+    whose slope changes with the speed: the jerk (the filter's error in qd grows with it, as the ``jerk`` block of
+    :func:`state_blocks` has it) times ``kernels`` Gaussians exp(-(qd/c_k)^2) in |qd|, alone and times sign(qd), the
+    c_k log spaced from the 2 % to the 98 % quantile of the training speeds.  With Coulomb and viscous friction the
+    slope is the constant kv and the jerk alone carries the error; beside a Stribeck law the slope is steep at low
+    speed and flat at high speed, and the error with it (the hundred-and-first round,
+    :func:`~drake_est.diagnose.core.rescue_explained_by_filter_slope`).  None when the training speeds span no range."""
+    jd = prep.joints[j]
+    v = jd.v[jd.rows]
+    av = np.abs(v)
+    lo, hi = np.quantile(av[jd.train], [0.02, 0.98])
+    if not (lo > 0 and hi > lo):
+        return None
+    K = np.exp(-(av[:, None] / np.geomspace(lo, hi, kernels)[None, :]) ** 2)
+    jerk = np.gradient(jd.a, jd.t)[jd.rows]
+    return np.hstack([jerk[:, None] * K, (jerk * np.sign(v))[:, None] * K])
+
+
 #: time constants [s] of the transients after a reversal of the direction of motion (:func:`reversal_columns`)
 REVERSAL_TIME_CONSTANTS_S = (0.05, 0.2, 1.0)
 
@@ -604,7 +627,8 @@ def reversal_columns(jd):
     return np.column_stack(cols)
 
 
-def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, without=(), chosen=None, rows=None):
+def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, without=(), chosen=None, rows=None,
+                   extra=None):
     """Columns (at the joint's used rows) of a free function of the state of joint ``j`` that predicts its held-out
     residual: the blocks of :func:`state_blocks` joined one at a time, each time the one that lowers the held-out
     error of the model most (fitted on the training rows), while one does.  Blocks that overlap (the kernels times
@@ -615,7 +639,8 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, wit
     when no block lowers the held-out error (the candidate is then tested given the model alone).  ``without``: the
     names of blocks left out; ``chosen``: a list the names of the blocks joined are appended to, in their order;
     ``rows`` = (fit rows, compared rows), boolean over the used rows, instead of the joint's training and held-out
-    rows (as in :func:`_partial_test`)."""
+    rows (as in :func:`_partial_test`); ``extra``: more blocks by name (e.g. :func:`filter_slope_columns`), offered
+    after those of :func:`state_blocks`."""
     solve = solve or _lstsq
     from drake_est.diagnose.nominal import nominal_names
     n0 = len(nominal_names(prep.robot_kind))
@@ -626,6 +651,10 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, wit
         raise ValueError(f"state_nuisance: no state block named {', '.join(unknown)} "
                          f"(the blocks: {', '.join(STATE_BLOCK_NAMES)})")
     blocks = {k: B for k, B in state_blocks(prep, j, kernels).items() if k not in without}
+    clash = sorted(set(extra or {}) & set(blocks))
+    if clash:
+        raise ValueError(f"state_nuisance: extra block {', '.join(clash)} is already a state block")
+    blocks.update(extra or {})
     train, val = (jd.train, jd.val) if rows is None else rows
     best, _ = _fit_rss(X, jd.y, train, val, n0, solve)
     cols = []
