@@ -10,7 +10,7 @@ names an abrupt change, ambiguous with an energy drift, beside the pair: let pas
 held-out RMSE by 4.8 %, by 3.5 % given the state's function (p = 6e-198).  The derivative filter's error in qd grows
 with the jerk and reaches the torque through the friction curve's slope, steep at low speed beside a Stribeck hump;
 the log moves slowly in its first half minute.  Offered the jerk times kernels in |qd|
-(``competition.filter_slope_columns``), the function lowers the held-out RMSE by 31 % alone and the change adds 0.4 %
+(``competition.filter_slope_columns``), the function lowers the held-out RMSE by 42 % alone and the change adds 0.7 %
 given it.  The rule (``core.TIME_LAW_RESCUE_FILTER_SLOPE_RULE``, the function where it acts:
 ``core.rescue_explained_by_filter_slope``; rule file:
 ``benchmarks/results/diagnose_rescue_filter_slope_round101_rule.txt``) then does not let the law past the guard.

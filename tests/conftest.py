@@ -138,6 +138,9 @@ REFOLDED_ROUND_98 = refolded_rows("diagnose_speed_curve_adc_guarded_round98_lane
 #: were run again after the fold (the split costs' SVD basis), so their rule-on rows are the kept rows: the folded keys
 #: are those whose rule-off rows differ from them
 REFOLDED_ROUND_100 = refolded_rows("diagnose_change_refined_before_position_law_round100_lane_*.json", "rows_off")
+#: the keys whose kept rows the hundred-and-first round folded (its rule-on rows that differ from the rows kept before
+#: them): 36374 (mended), which earlier rounds' lanes and screens saw as it was
+REFOLDED_ROUND_101 = refolded_rows("diagnose_rescue_filter_slope_round101_lane_*.json")
 
 
 def probe_results(pattern: str):

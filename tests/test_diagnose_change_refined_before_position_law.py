@@ -109,9 +109,11 @@ def test_kept_and_its_table_is_its_jsons():
     lane_ab = sorted(keys[0] + keys[1])
     assert len(keys[0]) == len(keys[1]) == 276 and lane_ab == sorted(set(lane_ab)) and 41128 in keys[0]
     # as drawn: the touchable kept rows below the fresh blocks from 41200 on; of the two folded rows 16004 no longer
-    # sets a position friction aside and left the screen, 41128 still sets one aside
+    # sets a position friction aside and left the screen, 41128 still sets one aside; 36374, folded by the
+    # hundred-and-first round, names no change any more and left it too
+    from conftest import REFOLDED_ROUND_101
     touchable = probe.kept_keys("loop", probe.touchable)
-    assert set(lane_ab) - {16004} == {k for k in touchable if k < 41200}
+    assert set(lane_ab) - {16004} - REFOLDED_ROUND_101 == {k for k in touchable if k < 41200}
     assert REFOLDED_ROUND_100 == {16004, 41128} and REFOLDED_ROUND_100 & set(touchable) == {41128}
     assert keys[2] == probe.kept_keys("testbench", probe.touchable) and files[2][1]["family"] == "testbench"
     # lane e: the touchable rows of the fresh blocks 41200-41399, run with the rule on
