@@ -62,17 +62,13 @@ def touchable_keys(family: str = "loop", results_dir=None) -> list:
 keys_cli = functools.partial(probe_state_check_speeds.keys_cli, candidate_keys=touchable_keys, name="touchable")
 
 
-#: ``--min-share=X``: the share of the nominal training residual from which the screen lists a joint (default: the
-#: rule's own, ``core.SPLIT_LOCKED_SHARE``); a lower one lists the joints near the rule's threshold, whose logs a lane
-#: then diagnoses with the rule on (the screen reads the residual of the log as prepared, the rule the one after the
-#: search's outlier screen and inertia backfit)
-MIN_SHARE = None
-
-
-def locked_joints(family: str, spec: dict) -> dict:
+def locked_joints(family: str, spec: dict, min_share: float | None = None) -> dict:
     """{joint: :func:`core.split_locked_disturbance`} of the log of ``spec`` (of ``family``) as prepared for its kept
-    row, on the nominal fit's residual (no diagnosis): the joints the rule can mark (with :data:`MIN_SHARE`, those
-    whose share reaches it); ``{"refused": message}`` when preparation refuses the log."""
+    row, on the nominal fit's residual (no diagnosis): the joints the rule can mark, or with ``min_share`` (the
+    screen's ``--min-share=X``; default the rule's own, ``core.SPLIT_LOCKED_SHARE``) those whose share of the nominal
+    training residual reaches it (a lower one lists the joints near the rule's threshold, whose logs a lane then
+    diagnoses with the rule on: the screen reads the residual of the log as prepared, the rule the one after the
+    search's outlier screen and inertia backfit); ``{"refused": message}`` when preparation refuses the log."""
     from drake_est.diagnose import core
     prep = probe_state_check_speeds.prepared_log(family, spec)
     if isinstance(prep, dict):
@@ -80,7 +76,7 @@ def locked_joints(family: str, spec: dict) -> dict:
     fit0 = core.Model(prep, []).fit()
     out = {}
     for j in prep.joints:
-        got = core.split_locked_disturbance(prep, j, core._residual(prep, fit0, j), min_share=MIN_SHARE)
+        got = core.split_locked_disturbance(prep, j, core._residual(prep, fit0, j), min_share=min_share)
         if got is not None:
             out[str(j)] = got
     return out
@@ -101,7 +97,6 @@ def run(out_path: str, keys, family: str = "loop") -> dict:
 
 
 def main(argv=None):
-    global MIN_SHARE
     argv = list(sys.argv[1:] if argv is None else argv)
     min_share = None
     for a in [a for a in argv if a.startswith("--min-share=")]:
@@ -118,12 +113,9 @@ def main(argv=None):
     if min_share is not None:
         what = f"a joint where a sinusoid at the split's locked frequency holds {min_share} of the residual or more"
         extra = {"extra": {"min_share": min_share}}
-    MIN_SHARE = min_share
-    try:
-        probe_state_check_speeds.screen_probe_main(argv, __doc__, keys_cli, run, measure=locked_joints, what=what,
-                                                   desc="prepare (nominal fit, locked sinusoid)", **extra)
-    finally:
-        MIN_SHARE = None
+    probe_state_check_speeds.screen_probe_main(argv, __doc__, keys_cli, run,
+                                               measure=functools.partial(locked_joints, min_share=min_share),
+                                               what=what, desc="prepare (nominal fit, locked sinusoid)", **extra)
 
 
 if __name__ == "__main__":

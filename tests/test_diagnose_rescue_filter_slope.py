@@ -89,6 +89,17 @@ def test_off_or_out_of_its_case_it_lets_the_law_be(monkeypatch):
     assert core.rescue_explained_by_filter_slope(None, no_strib, law) is None
 
 
+def test_the_report_says_why_a_law_was_not_let_past():
+    """A candidate held back by the ADC guard whose rescue this round's check refused is reported with that reason,
+    before the guard's own."""
+    from drake_est.diagnose.report import rejection_reason
+    r = {"effect": "abrupt_change", "joint": 1, "p_value": 1e-30, "rmse_reduction": 0.05,
+         "below_quantization_step": True}
+    assert rejection_reason(r) == "its change of the prediction stays within the torque ADC's rounding"
+    r["rescue_explained_by_filter_slope"] = {"p_value": 1e-5, "rmse_reduction": 0.007, "score": 12.0}
+    assert rejection_reason(r).endswith("the derivative filter's error through the Stribeck law's slope explains it")
+
+
 def test_probe_touchable_and_control():
     """The probe's screen: a quantized torque with a law in time and a Stribeck law among the findings, named or set
     aside; the control draws 100 quantized rows with a Stribeck law and no law in time, the same keys on every call,
@@ -146,6 +157,12 @@ def test_spec_36374_loses_the_change(design_case):
     assert seen and {e for e, _ in seen} <= set(core.TIME_LAWS)
     for _, (N, t, own, state) in seen:
         assert t["rmse_reduction"] < core.MIN_GAIN and state >= own
+    # the report says why the change of the last round was held back
+    from drake_est.diagnose.report import rejection_reason
+    nf = {r["effect"]: r for r in on["not_found"]}
+    assert nf["abrupt_change"]["below_quantization_step"]
+    assert nf["abrupt_change"]["rescue_explained_by_filter_slope"]["rmse_reduction"] < core.MIN_GAIN
+    assert "the Stribeck law's slope explains it" in rejection_reason(nf["abrupt_change"])
 
 
 def test_kept_and_its_table_is_its_jsons():

@@ -485,7 +485,7 @@ TIME_LAW_RESCUE_CHECKS = True
 
 
 def time_law_beyond_rounding(prep, model, ext, alpha: float = ALPHA,
-                             min_gain: float = None) -> dict | None:
+                             min_gain: float = None, why: dict | None = None) -> dict | None:
     """A law of the friction in time (:data:`TIME_LAWS`) that the ADC guard (:func:`_above_quantization`) holds back,
     judged by what the guard stands in for.  The guard assumes the worst: that the extension fits the rounding error
     e, at most half a step per sample, wherever it changes the prediction by less than half a step; a drift of the
@@ -496,7 +496,9 @@ def time_law_beyond_rounding(prep, model, ext, alpha: float = ALPHA,
     The likelihood of the quantized readings themselves (:func:`rounding_loglik_gains`, each reading saying only that
     the torque lay within half a step of it) does not count the rounding as noise: the law is kept when its held-out
     gain there passes the likelihood-ratio bound of :func:`gain_within_rounding` (both gains).  Returns the gains
-    (``heldout_loglik_gain``, ``heldout_loglik_gain_profiled``, ``rounding_lr_bound``) or None."""
+    (``heldout_loglik_gain``, ``heldout_loglik_gain_profiled``, ``rounding_lr_bound``) or None; ``why`` (a dict) gets
+    ``rescue_explained_by_filter_slope`` (the law's test given the state's function) where the hundred-and-first
+    round's check alone refused it (:func:`rescue_explained_by_filter_slope`)."""
     if ext.effect not in TIME_LAWS or ext.shared:
         return None
     if TIME_LAW_RESCUE_CHECKS and any(x is not ext and not x.shared and x.joint == ext.joint and x.effect in TIME_LAWS
@@ -516,7 +518,10 @@ def time_law_beyond_rounding(prep, model, ext, alpha: float = ALPHA,
                     # elastic gears: an abrupt change that given the state's function lowers the held-out RMSE by
                     # -0.04 % and -0.25 %)
                     return None
-                if rescue_explained_by_filter_slope(prep, m0, ext, alpha) is not None:
+                refused = rescue_explained_by_filter_slope(prep, m0, ext, alpha)
+                if refused is not None:
+                    if why is not None:
+                        why["rescue_explained_by_filter_slope"] = comp._brief(refused[1])
                     return None
             return {"heldout_loglik_gain": info["heldout_loglik_gain"],
                     "heldout_loglik_gain_profiled": info["heldout_loglik_gain_profiled"],
@@ -1469,12 +1474,14 @@ def _evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state, retry=True) 
     tst = _test(prep, fit, f1, ext)
     tst["significant"] = bool(tst["p_value"] < alpha and tst["rmse_reduction"] >= min_gain and tst["score"] > 0)
     if tst["significant"] and not _above_quantization(prep, fit, f1, ext):
-        lr = time_law_beyond_rounding(prep, m1, ext) if TIME_LAWS_BY_READINGS_LIKELIHOOD else None
+        why = {}
+        lr = time_law_beyond_rounding(prep, m1, ext, why=why) if TIME_LAWS_BY_READINGS_LIKELIHOOD else None
         if lr is not None:
             tst["beyond_rounding_by_likelihood"] = lr
         else:
             tst["significant"] = False
             tst["below_quantization_step"] = True
+            tst.update(why)
     if tst["significant"]:
         neg = negative_friction(prep, m1, f1, ext, sigma)
         if neg is not None and retry and DISSIPATIVE_CHANGE_RULE and ext.effect == "abrupt_change" and not ext.shared:

@@ -556,6 +556,8 @@ def markdown(d: dict) -> str:
 #: why a candidate of the last round was not accepted, by the flag its test carries (the first that applies)
 REJECTION_REASONS = (
     ("negative_friction", "it would leave a friction below zero at some speed"),
+    ("rescue_explained_by_filter_slope", "its change of the prediction stays within the torque ADC's rounding, and "
+                                         "the derivative filter's error through the Stribeck law's slope explains it"),
     ("below_quantization_step", "its change of the prediction stays within the torque ADC's rounding"),
     ("not_separated_on_held_out_blocks", "its gain does not hold across the held-out blocks (paired test)"),
     ("explained_by_speed_law", "a free friction curve explains it"),
