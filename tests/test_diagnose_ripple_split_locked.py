@@ -133,8 +133,8 @@ def test_kept_and_its_table_is_its_jsons():
 
 
 def test_probe_min_share_is_checked_and_goes_with_the_screen():
-    """``--min-share`` must be a share in [0, 1] and only lowers the screen's threshold: with a rule lane it is refused,
-    and the probe's threshold is back to the rule's own afterwards."""
+    """``--min-share`` must be a share in [0, 1] and only lowers the screen's threshold: with a rule lane it is refused;
+    the screen's measure carries it (and the screen's JSON records it), without it the rule's own threshold (None)."""
     from conftest import bench_module
     probe = bench_module("probe_ripple_split_locked")
     for argv, msg in ((["--min-share=x", "--screen", "OUT.json", "2"], "expected a number"),
@@ -142,4 +142,16 @@ def test_probe_min_share_is_checked_and_goes_with_the_screen():
                       (["--min-share=0.2", "OUT.json", "2"], "goes with --screen")):
         with pytest.raises(SystemExit, match=msg):
             probe.main(argv)
-        assert probe.MIN_SHARE is None
+    seen = []
+    monkey = pytest.MonkeyPatch()
+    try:
+        monkey.setattr(probe.probe_state_check_speeds, "screen_probe_main",
+                       lambda argv, *a, **kw: seen.append((argv, kw)))
+        probe.main(["--min-share=0.2", "--screen", "OUT.json", "2"])
+        probe.main(["--screen", "OUT.json", "2"])
+    finally:
+        monkey.undo()
+    (argv0, kw0), (argv1, kw1) = seen
+    assert argv0 == argv1 == ["--screen", "OUT.json", "2"]
+    assert kw0["measure"].keywords == {"min_share": 0.2} and kw0["extra"] == {"min_share": 0.2}
+    assert kw1["measure"].keywords == {"min_share": None} and "extra" not in kw1
