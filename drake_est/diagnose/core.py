@@ -536,7 +536,7 @@ def time_law_beyond_rounding(prep, model, ext, alpha: float = ALPHA,
 TIME_LAW_RESCUE_FILTER_SLOPE_RULE = True
 
 
-def rescue_explained_by_filter_slope(prep, m0, ext, alpha: float = ALPHA) -> dict | None:
+def rescue_explained_by_filter_slope(prep, m0, ext, alpha: float = ALPHA) -> tuple | None:
     """With :data:`TIME_LAW_RESCUE_FILTER_SLOPE_RULE`, on a joint whose model ``m0`` (without the law in time ``ext``)
     holds a Stribeck law: whether the free function of the joint's state explains ``ext`` once it may also take the
     derivative filter's error through the friction curve's slope
@@ -547,9 +547,9 @@ def rescue_explained_by_filter_slope(prep, m0, ext, alpha: float = ALPHA) -> dic
     the torque ADC's step (fresh loop spec 36374: a load beside Stribeck at 1000 Hz with a quantized torque, an abrupt
     change held back by the ADC guard and let past by the readings' likelihood lowers the held-out RMSE by 4.8 %, by
     3.5 % given the state's function, by 0.7 % once the function may take the jerk through the slope; that function
-    alone lowers it by 42 %).  Returns what :func:`_state_tests` returned with those columns offered (the law is then not let
-    past the guard), else None: the rule off, no Stribeck law on the joint, no such columns, or the law still
-    predicts the held-out residual."""
+    alone lowers it by 42 %).  Returns what :func:`_state_tests` returned with those columns offered, ``(N, the law's
+    test given N, its own RMSE reduction, N's)`` (the law is then not let past the guard), else None: the rule off, no
+    Stribeck law on the joint, no such columns, or the law still predicts the held-out residual."""
     if not TIME_LAW_RESCUE_FILTER_SLOPE_RULE or ext.shared:
         return None
     j = ext.joint
