@@ -33,10 +33,9 @@ class Round(NamedTuple):
     """One kept round's probe: ``script`` (in ``benchmarks/``) and its ``--keys`` mode ``keys``; ``prefix`` of its
     JSONs in ``benchmarks/results``; ``screens``: how many screens a block gets (0: a lane on the keys themselves; 2:
     the keys split over two screens, ``--lane=0/2`` and ``--lane=1/2``); ``same_letter``: the lane after a screen takes
-    the screen's letter (the ninety-first round); ``lane_always``: the lane after the screens runs even when they list
-    nothing (never: a lane needs keys); ``args``: the probe's arguments before the output JSON (e.g. ``--rule=...``);
-    ``lane_of``: another round's screens give this round's lane keys (the ninety-seventh round reads the
-    ninety-sixth's)."""
+    the screen's letter (the ninety-first round); the lane after screens runs only where they list keys; ``args``:
+    the probe's arguments before the output JSON (e.g. ``--rule=...``); ``lane_of``: another round's screens give this
+    round's lane keys (the ninety-seventh round reads the ninety-sixth's); ``note``: printed beside the round."""
     number: int
     script: str
     keys: str
@@ -105,15 +104,16 @@ def probe_keys(rnd: Round, start: int, end: int, python=sys.executable) -> list:
 
 def block_plan(start: int, end: int, results=RESULTS, python=sys.executable) -> list:
     """Per round of :data:`ROUNDS` (those whose keys come from another round after it): ``{"round", "script",
-    "keys", "screens": [(letter, lane share)], "lane": letter or None, "lane_after_screens": bool}``.  A round with no
+    "prefix", "note", "args", "keys", "screens": [(letter, lane share)], "lane": letter or None,
+    "lane_after_screens": bool}`` (and ``"lane_of"``).  A round with no
     key in the block gets no lane or screen."""
     plan, by_number = [], {}
     for rnd in ROUNDS:
         if rnd.lane_of is not None:
             continue
         keys = probe_keys(rnd, start, end, python)
-        item = {"round": rnd.number, "script": rnd.script, "args": list(rnd.args), "keys": keys, "screens": [],
-                "lane": None, "lane_after_screens": False}
+        item = {"round": rnd.number, "script": rnd.script, "prefix": rnd.prefix, "note": rnd.note,
+                "args": list(rnd.args), "keys": keys, "screens": [], "lane": None, "lane_after_screens": False}
         if keys and rnd.screens:
             last = (letters(rnd.prefix, "screen", results) or [None])[-1]
             for i in range(rnd.screens):
@@ -130,15 +130,12 @@ def block_plan(start: int, end: int, results=RESULTS, python=sys.executable) -> 
         if rnd.lane_of is None:
             continue
         src = by_number[rnd.lane_of]
-        plan.append({"round": rnd.number, "script": rnd.script, "args": list(rnd.args), "keys": [],
+        plan.append({"round": rnd.number, "script": rnd.script, "prefix": rnd.prefix, "note": rnd.note,
+                     "args": list(rnd.args), "keys": [],
                      "screens": [], "lane": (next_letter((letters(rnd.prefix, "lane", results) or [None])[-1])
                                              if src["screens"] else None),
                      "lane_after_screens": bool(src["screens"]), "lane_of": rnd.lane_of})
     return plan
-
-
-def _prefix(number: int) -> str:
-    return next(r.prefix for r in ROUNDS if r.number == number)
 
 
 def commands(plan) -> tuple:
@@ -147,7 +144,7 @@ def commands(plan) -> tuple:
     first, second = [], []
     py = "OPENBLAS_NUM_THREADS=1 python benchmarks/"
     for it in plan:
-        pre = _prefix(it["round"])
+        pre = it["prefix"]
         args = " ".join(it["args"])
         args = f" {args}" if args else ""
         keys = " ".join(str(k) for k in it["keys"])
@@ -160,7 +157,7 @@ def commands(plan) -> tuple:
         if it["lane_after_screens"]:
             # the lane on the keys the screens list (its own, or another round's), run only where they list some
             src = next(x for x in plan if x["round"] == it.get("lane_of", it["round"]))
-            spre = _prefix(src["round"])
+            spre = src["prefix"]
             scr = " ".join(f"benchmarks/results/{spre}_screen_{x}.json" for x, _ in src["screens"])
             listed = f"$(python benchmarks/{src['script']} --keys screened {scr})"
             second.append(f"K=\"{listed}\"; if [ -n \"$K\" ]; then {py}{it['script']}{args} {out} $K; fi")
@@ -200,7 +197,8 @@ def main(argv=None) -> int:
     for it in plan:
         what = ", ".join([f"screen {x}" for x, _ in it["screens"]] + ([f"lane {it['lane']}"] if it["lane"] else []))
         n = f"{len(it['keys'])} keys" if it.get("lane_of") is None else f"the keys round {it['lane_of']} lists"
-        print(f"# round {it['round']:3d}: {n}: {what or 'nothing to run'}")
+        note = f" ({it['note']})" if it["note"] else ""
+        print(f"# round {it['round']:3d}: {n}: {what or 'nothing to run'}{note}")
     first, second = commands(plan)
     print("\n".join(first + second))
     if a.json:
