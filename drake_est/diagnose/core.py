@@ -1993,7 +1993,7 @@ def disturbance_explained_by_state(prep, model, alpha, min_gain):
     return None
 
 
-def _state_explains(prep, m0, j, C, alpha, min_gain, without=(), rows=None):
+def _state_explains(prep, m0, j, C, alpha, min_gain, without=(), rows=None, extra=None, chosen=None):
     """Whether a free function of joint ``j``'s state (:func:`~drake_est.diagnose.competition.state_nuisance`, its
     blocks chosen forward on the model ``m0`` without the finding, ``without``: blocks left out) explains the finding
     whose columns are ``C``: given the function they do not predict the held-out residual (partial held-out F-test at
@@ -2004,8 +2004,9 @@ def _state_explains(prep, m0, j, C, alpha, min_gain, without=(), rows=None):
     RMSE alone, 15 % higher given the state's 14 columns, which were chosen to predict the residual with the
     disturbance still in it).  ``(N, test given the function, own RMSE reduction, the function's)``, else None.  The
     checks of :func:`disturbance_explained_by_state` and :func:`time_law_explained_by_state`.  ``rows``: (fit rows,
-    compared rows) instead of the joint's training and held-out rows (:func:`_state_tests`)."""
-    got = _state_tests(prep, m0, j, C, alpha, min_gain, without=without, rows=rows)
+    compared rows) instead of the joint's training and held-out rows (:func:`_state_tests`); ``extra``: more blocks
+    offered to the function, ``chosen``: a list the joined blocks' names are appended to."""
+    got = _state_tests(prep, m0, j, C, alpha, min_gain, without=without, rows=rows, extra=extra, chosen=chosen)
     if got is None or got[3] < got[2]:
         return None
     return got
@@ -2060,7 +2061,7 @@ def state_check_rows(prep, j):
     return ((jd.train, jd.val & ~far), n) if n else (None, 0)
 
 
-def _state_explains_one_way(prep, m0, j, C, alpha, min_gain):
+def _state_explains_one_way(prep, m0, j, C, alpha, min_gain, extra=None, chosen=None):
     """``(what _state_explains returned, the function's partial test given C)`` when a free function of joint ``j``'s
     state explains the finding with columns ``C`` (:func:`_state_explains`) and, given ``C``, still predicts the
     held-out residual (partial held-out F-test at ``alpha``, gain ``min_gain``); None otherwise.  Where the function
@@ -2068,9 +2069,11 @@ def _state_explains_one_way(prep, m0, j, C, alpha, min_gain):
     which then stays (a change of the friction over the log that the moves make look like a function of the state).
     The checks of :func:`time_law_explained_by_state` (fifty-third round) and
     :func:`sole_time_law_explained_by_state` (fifty-second round).  Returns ``(got, back, left out)``: the held-out
-    rows of :func:`state_check_rows` left out of every test (ninety-first round), 0 when none."""
+    rows of :func:`state_check_rows` left out of every test (ninety-first round), 0 when none.  ``extra``: more
+    blocks offered to the function (:func:`_state_tests`), ``chosen``: a list the joined blocks' names are appended
+    to."""
     rows, n_far = state_check_rows(prep, j)
-    got = _state_explains(prep, m0, j, C, alpha, min_gain, rows=rows)
+    got = _state_explains(prep, m0, j, C, alpha, min_gain, rows=rows, extra=extra, chosen=chosen)
     if got is None:
         return None
     back = comp._partial_test(prep, m0, j, C, got[0], alpha, min_gain, _model_solver(m0, j), rows=rows)
@@ -2130,8 +2133,10 @@ def time_law_explained_by_state(prep, model, steps, alpha, min_gain):
         j = e.joint
         # one way only (loop spec 11098 on an AVX2 CPU: a planted change beside a ripple at 1000 Hz, 0.6 % given the
         # function, the function alone 64.7 %, the change alone 64.3 %)
+        extra = filter_slope_block(prep, j) if beside == ["stribeck"] else None
+        chosen = []
         one_way = _state_explains_one_way(prep, Model(prep, [x for x in model.exts if x is not e]), j, e.cols[j],
-                                          alpha, min_gain)
+                                          alpha, min_gain, extra=extra, chosen=chosen)
         if one_way is not None:
             got = one_way[0]
             if beside == ["stribeck"]:
@@ -2139,10 +2144,39 @@ def time_law_explained_by_state(prep, model, steps, alpha, min_gain):
             else:
                 laws = " and ".join(x.replace("_", " ") for x in beside)
                 where, cause = f" beside its {laws}", f"the fixed shape of its {laws}"
-            return e.effect, j, _beyond_speeds_note(
-                _state_entry(j, got, where, f"the {e.effect.replace('_', ' ')}", "the law alone",
-                             f": the misfit of {cause}, not a change of the friction over the log"), one_way[2])
+            slope = extra is not None and "filter_slope" in chosen
+            if slope:
+                where += (", the function holding the derivative filter's error through the friction curve's slope "
+                          "(the jerk times kernels in |qd|)")
+                cause += " and of the filtered speed"
+            why = _state_entry(j, got, where, f"the {e.effect.replace('_', ' ')}", "the law alone",
+                               f": the misfit of {cause}, not a change of the friction over the log")
+            if slope:
+                why["filter_slope_chosen"] = True
+            return e.effect, j, _beyond_speeds_note(why, one_way[2])
     return None
+
+
+#: hundred-and-second round: the forty-sixth round's check of a law in time beside a Stribeck law against a free
+#: function of the joint's state (:func:`time_law_explained_by_state`) offers that function the derivative filter's
+#: error through the friction curve's slope too (:func:`filter_slope_block`), as the hundred-and-first round's rescue
+#: check does
+TIME_LAW_BESIDE_STRIBECK_FILTER_SLOPE_RULE = False
+
+
+def filter_slope_block(prep, j) -> dict | None:
+    """With :data:`TIME_LAW_BESIDE_STRIBECK_FILTER_SLOPE_RULE`: ``{"filter_slope": columns}``
+    (:func:`~drake_est.diagnose.competition.filter_slope_columns`), the block offered to the free function of joint
+    ``j``'s state where :func:`time_law_explained_by_state` checks a law in time beside a Stribeck law; None with the
+    rule off or where the training speeds span no range.  The derivative filter's error in qd grows with the jerk and
+    reaches the torque through the friction curve's slope, steep at low speed beside a Stribeck hump; where the log
+    moves differently in its parts, a law in time takes that misfit (fresh loop spec 41591: an asymmetric level beside
+    Stribeck at 250 Hz with a quantized torque, an abrupt change at 70.7 s named beside them with 6 % lower held-out
+    RMSE, where the jerk alone beside the level and the Stribeck law lowers it by 9 %)."""
+    if not TIME_LAW_BESIDE_STRIBECK_FILTER_SLOPE_RULE:
+        return None
+    F = comp.filter_slope_columns(prep, j)
+    return None if F is None else {"filter_slope": F}
 
 
 #: the variables of the final residual's structure (:func:`~drake_est.diagnose.unexplained.residual_structure`) that
