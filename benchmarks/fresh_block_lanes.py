@@ -168,14 +168,17 @@ def commands(plan) -> tuple:
 
 def run(lines, workers: int = 2) -> list:
     """Run the shell ``lines`` from the repository root, one at a time on each of ``workers`` queues; the lines that
-    failed, with their exit status."""
+    failed, with their exit status.  ``python`` in a line is the interpreter running this script (its directory
+    first on PATH: a virtual environment that is not activated)."""
     from concurrent.futures import ThreadPoolExecutor
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1",
+           "PATH": os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])}
 
     def queue(q):
         bad = []
         for line in q:
             rc = subprocess.run(["bash", "-c", line], cwd=HERE.parent,
-                                env={**os.environ, "OPENBLAS_NUM_THREADS": "1"}).returncode
+                                env=env).returncode
             if rc:
                 bad.append((rc, line))
         return bad
