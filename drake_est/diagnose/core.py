@@ -2161,7 +2161,7 @@ def time_law_explained_by_state(prep, model, steps, alpha, min_gain):
 #: function of the joint's state (:func:`time_law_explained_by_state`) offers that function the derivative filter's
 #: error through the friction curve's slope too (:func:`filter_slope_block`), as the hundred-and-first round's rescue
 #: check does
-TIME_LAW_BESIDE_STRIBECK_FILTER_SLOPE_RULE = False
+TIME_LAW_BESIDE_STRIBECK_FILTER_SLOPE_RULE = True
 
 
 def filter_slope_block(prep, j) -> dict | None:
