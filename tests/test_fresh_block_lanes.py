@@ -55,11 +55,43 @@ def test_the_block_41200_41399_plan_is_what_its_lanes_and_screens_saw(tmp_path):
     r101 = set(keys("diagnose_rescue_filter_slope_round101_lane_a", "keys_examined")
                + keys("diagnose_rescue_filter_slope_round101_lane_b", "keys_examined"))
     assert plan[101]["keys"] and set(plan[101]["keys"]) <= r101
-    # the letters after the last JSON of each kind
-    assert [plan[r]["lane"] for r in (100, 95, 89, 88, 74)] == ["f", "o", "zj", "zo", "zzh"]
-    assert [x for x, _ in plan[96]["screens"]] == ["zo", "zp"] and plan[96]["screens"][0][1] == "0/2"
-    assert plan[91]["screens"][0][0] == plan[91]["lane"] == "zf"
-    assert plan[97]["lane"] == "r" and plan[97]["lane_of"] == 96
+    # the letters after the last JSON of each kind (the blocks 41400-41599 were laned by this script since)
+    assert [plan[r]["lane"] for r in (102, 101, 100, 95, 89, 88, 74)] == ["d", "e", "g", "o", "zk", "zp", "zzi"]
+    assert [x for x, _ in plan[96]["screens"]] == ["zq", "zr"] and plan[96]["screens"][0][1] == "0/2"
+    assert plan[91]["screens"][0][0] == plan[91]["lane"] == "zg"
+    assert plan[97]["lane"] == "s" and plan[97]["lane_of"] == 96
     first, second = fb.commands(list(plan.values()))
-    assert any("round96_screen_zo.json --lane=0/2 41200 41201" in c for c in first)
-    assert any("round97_lane_r.json $K" in c and "round96_screen_zo.json" in c for c in second)
+    assert any("round96_screen_zq.json --lane=0/2 41200 41201" in c for c in first)
+    assert any("round97_lane_s.json $K" in c and "round96_screen_zq.json" in c for c in second)
+
+
+@pytest.mark.long
+def test_the_block_41400_41599_plan_is_what_its_lanes_and_screens_saw():
+    """The fresh blocks 41400-41599 were laned by this script (``--run``): every round's keys are the keys its lane or
+    screens of that block examined.  The hundred-and-second round's lanes a and b took every touchable row (41591 in
+    b), and round 90's lane q took 41591 after that round's fold gave it two findings set aside."""
+    fb = bench_module("fresh_block_lanes")
+    plan = {it["round"]: it for it in fb.block_plan(41400, 41600)}
+
+    def keys(name, key):
+        return sorted(json.loads((RESULTS / f"{name}.json").read_text())[key])
+    lanes = {101: "diagnose_rescue_filter_slope_round101_lane_d",
+             100: "diagnose_change_refined_before_position_law_round100_lane_f",
+             90: "diagnose_closed_rival_round90_lane_q",
+             89: "diagnose_position_friction_dissipation_round89_lane_zj",
+             88: "diagnose_disturbance_stationary_round88_lane_zo",
+             74: "diagnose_position_law_as_accepted_round74_lane_zzh"}
+    screens = {99: ["diagnose_ripple_split_locked_round99_screen_h"],
+               98: ["diagnose_speed_curve_adc_guarded_round98_screen_o"],
+               96: ["diagnose_beyond_training_positions_round96_screen_zo",
+                    "diagnose_beyond_training_positions_round96_screen_zp"],
+               93: ["diagnose_load_untested_direction_round93_screen_z"],
+               91: ["diagnose_state_check_speeds_round91_screen_zf"]}
+    for r, name in lanes.items():
+        assert plan[r]["keys"] == keys(name, "keys_examined") and plan[r]["keys"], r
+    for r, names in screens.items():
+        assert plan[r]["keys"] == sorted(k for n in names for k in keys(n, "keys_screened")), r
+    assert plan[95]["keys"] == plan[92]["keys"] == []
+    r102 = set(keys("diagnose_time_law_beside_stribeck_filter_slope_round102_lane_a", "keys_examined")
+               + keys("diagnose_time_law_beside_stribeck_filter_slope_round102_lane_b", "keys_examined"))
+    assert 41591 in plan[102]["keys"] and set(plan[102]["keys"]) <= r102
