@@ -88,6 +88,12 @@ def _none_or(items: list, fmt) -> str:
     return f" ({'; '.join(fmt(c) for c in items)})" if items else ""
 
 
+def _dirty(r: dict) -> str:
+    """A null log that is not clean: "41618 at 10 Hz: `unexplained` (acceleration)"."""
+    what = f" ({', '.join(r['unexplained'])})" if r["got"] == "unexplained" and r.get("unexplained") else ""
+    return f"{r['k']}{conditions(r)}: `{r['got']}`{what}"
+
+
 def block_range(d: dict) -> tuple:
     ks = [r["k"] for r in d["rows"]]
     return min(ks), max(ks)
@@ -111,7 +117,7 @@ def paragraph(d: dict, name: str, sha: str) -> str:
         bits += [f"{c['k']}, {planted(c)}{conditions(c)}, is reported as `{c['got']}`" for c in oov_other]
         text += f" ({'; '.join(bits)})"
     text += f", {d['null_logs_clean']} / {d['null_logs']} null logs clean"
-    text += _none_or(dirty, lambda r: f"{r['k']}{conditions(r)}: `{r['got']}`")
+    text += _none_or(dirty, _dirty)
     if w:
         text += "; " + "; ".join(f"**{c['k']}**, {planted(c)}{conditions(c)}, is reported as `{c['got']}`"
                                  for c in d["wrong_name_cases"])

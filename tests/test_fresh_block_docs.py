@@ -45,12 +45,13 @@ def test_wrong_name_and_dirty_null_log_are_listed():
             "oov_unexplained": True, "correct": True, "unexplained": [], "seconds": 1.0}
     rows = [dict(base, k=5, truth="asymmetric_coulomb+stribeck", got="abrupt_change+stribeck",
                  wrong=["abrupt_change"], correct=False),
-            dict(base, k=6, truth="none", got="acceleration", correct=False, noise="gaussian", duration=120.0)]
+            dict(base, k=6, truth="none", got="unexplained", unexplained=["acceleration"], noise="gaussian",
+                 duration=120.0)]
     d = dict(B_counts(rows), rows=rows)
     text = F.paragraph(d, "x.json", "abc1234")
     assert "**1 wrong name**" in text
     assert "**5**, an asymmetric level beside Stribeck at 250 Hz with a quantized torque over 300 s" in text
-    assert "0 / 1 null logs clean (6 at 250 Hz: `acceleration`)" in text
+    assert "0 / 1 null logs clean (6 at 250 Hz: `unexplained` (acceleration))" in text
 
 
 def B_counts(rows):
