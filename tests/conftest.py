@@ -80,16 +80,19 @@ def closed_loop_case_where(k: int, premise, ulps=(0, 1, 2, 3, 5)):
     return None
 
 
-def closed_loop_off_and_on(k: int, switch: str, while_on=None):
+def closed_loop_off_and_on(k: int, switch: str, while_on=None, held=()):
     """(benchmark module, spec, truth, rule-off report, rule-on report, what ``while_on`` returned) of the closed-loop
     spec ``k`` diagnosed (``diagnose(..., simulate=False).to_dict()``) with ``core.<switch>`` False, then True;
     ``while_on(mp)`` (None: nothing) runs with the MonkeyPatch before the rule-on diagnosis, e.g. to wrap the function
-    where the rule acts.  Everything patched is restored afterwards.  For a module-scoped design-log fixture."""
+    where the rule acts; ``held``: other switches of ``core`` held False in both diagnoses (a later round's rule that
+    would act on the log too).  Everything patched is restored afterwards.  For a module-scoped design-log fixture."""
     import pytest
     from drake_est.diagnose import core, diagnose
     mod, spec, log, truth = closed_loop_case(k)
     mp = pytest.MonkeyPatch()
     try:
+        for h in held:
+            mp.setattr(core, h, False)
         mp.setattr(core, switch, False)
         off = diagnose(log, robot="generic", seed=0, simulate=False).to_dict()
         mp.setattr(core, switch, True)
