@@ -94,8 +94,22 @@ def _dirty(r: dict) -> str:
     return f"{r['k']}{conditions(r)}: `{r['got']}`{what}"
 
 
+def _refused(d: dict) -> str:
+    """"1 refused (41886: too few samples in the training or validation half), so 99 logs; " ("" when none)."""
+    import re
+    got = d.get("refused") or []
+    if not got:
+        return ""
+
+    def why(x):
+        m = re.search(r"joint \d+: (.*)\)$", x["reason"])
+        return m.group(1) if m else x["reason"]
+    listed = "; ".join(f"{x['k']}: {why(x)}" for x in got)
+    return f"{len(got)} refused ({listed}), so {d['logs']} logs; "
+
+
 def block_range(d: dict) -> tuple:
-    ks = [r["k"] for r in d["rows"]]
+    ks = [r["k"] for r in d["rows"]] + [x["k"] for x in d.get("refused") or []]
     return min(ks), max(ks)
 
 
@@ -106,7 +120,8 @@ def paragraph(d: dict, name: str, sha: str) -> str:
     oov_other = [c for c in d["oov_not_unexplained_cases"] if c["got"] != "none"]
     dirty = [r for r in d["rows"] if B.row_kind(r) == "null" and r["got"] != "none"]
     w = d["wrong_names"]
-    text = (f"**Fresh specs {lo}-{hi}**, run once with {sha} (`{name}`, the same way): {d['correct']} / {d['logs']} "
+    text = (f"**Fresh specs {lo}-{hi}**, run once with {sha} (`{name}`, the same way): {_refused(d)}"
+            f"{d['correct']} / {d['logs']} "
             f"correct, **{w} wrong name{'' if w == 1 else 's'}**, {d['missed']} missed"
             f"{_none_or(d['missed_cases'], _missed)}, {d['oov_unexplained_right']} / {d['oov_logs']} out-of-vocabulary "
             f"`unexplained`")
