@@ -85,7 +85,7 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_ripple_split_locked")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = {x: json.loads((root / f"diagnose_ripple_split_locked_round99_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i")}
+               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j")}
     loop = sorted(k for x in "01" for k in screens[x]["keys_screened"])
     assert len(loop) == 3611 and 40305 in loop and max(loop) < 40400
     # screen c: the 18 touchable rows of the fresh blocks 40400-40599, none listed
@@ -109,7 +109,10 @@ def test_kept_and_its_table_is_its_jsons():
     # screen i: the 18 of the fresh blocks 41600-41799, none listed
     assert len(screens["i"]["keys_screened"]) == 18 and min(screens["i"]["keys_screened"]) >= 41600
     assert screens["i"]["touched"] == []
-    fresh = fresh + sum((screens[x]["keys_screened"] for x in "defghi"), [])
+    # screen j: the 17 of the fresh blocks 41800-41999 (41886 refused by its block), none listed
+    assert len(screens["j"]["keys_screened"]) == 17 and min(screens["j"]["keys_screened"]) >= 41800
+    assert screens["j"]["touched"] == []
+    fresh = fresh + sum((screens[x]["keys_screened"] for x in "defghij"), [])
     assert sorted(set(loop + fresh) - {40305}) == probe.touchable_keys("loop")
     assert screens["testbench"]["keys_screened"] == probe.touchable_keys("testbench")
     assert len(screens["testbench"]["keys_screened"]) == 22 and screens["testbench"]["touched"] == []
