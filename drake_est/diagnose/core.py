@@ -2120,7 +2120,10 @@ def time_law_explained_by_state(prep, model, steps, alpha, min_gain):
     4320 and 1152 in the forty-seventh round: an energy drift ambiguous with Stribeck beside a load).
     A law the function explains is kept when, given the law, the function does not predict the held-out residual
     either (fifty-third round, as :func:`sole_time_law_explained_by_state`): the two then explain each other and only
-    the law keeps them apart (loop spec 11098 on an AVX2 CPU, a planted change beside a ripple).
+    the law keeps them apart (loop spec 11098 on an AVX2 CPU, a planted change beside a ripple).  Beside a Stribeck
+    law the function is also offered the derivative filter's error through the friction curve's slope
+    (:func:`filter_slope_block`, hundred-and-second round; the entry then holds ``filter_slope_chosen`` where that
+    block joined the function).
     :func:`time_law_within_speed_curve` holds the law against a curve of the speed only, which does not see direction
     or how long ago the joint reversed.  Loop spec 13761 (beside Stribeck): an asymmetric level beside Stribeck at 10
     Hz with Student-t noise; an abrupt change named with the level's part, ambiguous with a load, lowers the held-out
