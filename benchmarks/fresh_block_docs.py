@@ -142,11 +142,8 @@ def paragraph(d: dict, name: str, sha: str) -> str:
 def table_rows(d: dict, name: str, sha: str) -> list:
     """The block's rows of the runs table, the "unexplained" table and the ambiguity table."""
     lo, hi = block_range(d)
-    s = d
-    run = (f"| {lo}-{hi}, {sha}, run once (`{name}`) | {s['logs']} | {s['correct']} | {s['wrong_names']} | "
-           f"{s['missed']} | {s['oov_unexplained_right']} / {s['oov_logs']} | {s['null_logs_clean']} / "
-           f"{s['null_logs']} |")
-    return [run, B.unexplained_line(f"`{name}`", s), B.ambiguity_line(f"`{name}`", s)]
+    run = f"| {lo}-{hi}, {sha}, run once (`{name}`)" + B.count_cells(d)
+    return [run, B.unexplained_line(f"`{name}`", d), B.ambiguity_line(f"`{name}`", d)]
 
 
 def main(argv=None) -> int:

@@ -91,27 +91,11 @@ def test_kept_and_its_table_is_its_jsons():
     # screen c: the 18 touchable rows of the fresh blocks 40400-40599, none listed
     fresh = screens["c"]["keys_screened"]
     assert len(fresh) == 18 and min(fresh) >= 40400 and max(fresh) < 40600 and screens["c"]["touched"] == []
-    # screen d: the 19 of the fresh blocks 40600-40799, none listed
-    assert len(screens["d"]["keys_screened"]) == 19 and min(screens["d"]["keys_screened"]) >= 40600
-    assert screens["d"]["touched"] == []
-    # screen e: the 18 of the fresh blocks 40800-40999, none listed
-    assert len(screens["e"]["keys_screened"]) == 18 and min(screens["e"]["keys_screened"]) >= 40800
-    assert screens["e"]["touched"] == []
-    # screen f: the 18 of the fresh blocks 41000-41199, none listed
-    assert len(screens["f"]["keys_screened"]) == 18 and min(screens["f"]["keys_screened"]) >= 41000
-    assert screens["f"]["touched"] == []
-    # screen g: the 18 of the fresh blocks 41200-41399, none listed
-    assert len(screens["g"]["keys_screened"]) == 18 and min(screens["g"]["keys_screened"]) >= 41200
-    assert screens["g"]["touched"] == []
-    # screen h: the 18 of the fresh blocks 41400-41599, none listed
-    assert len(screens["h"]["keys_screened"]) == 18 and min(screens["h"]["keys_screened"]) >= 41400
-    assert screens["h"]["touched"] == []
-    # screen i: the 18 of the fresh blocks 41600-41799, none listed
-    assert len(screens["i"]["keys_screened"]) == 18 and min(screens["i"]["keys_screened"]) >= 41600
-    assert screens["i"]["touched"] == []
-    # screen j: the 17 of the fresh blocks 41800-41999 (41886 refused by its block), none listed
-    assert len(screens["j"]["keys_screened"]) == 17 and min(screens["j"]["keys_screened"]) >= 41800
-    assert screens["j"]["touched"] == []
+    # screens d-j: (logs screened, first spec of the fresh blocks), none listed; j's block refused 41886
+    for x, n, first in (("d", 19, 40600), ("e", 18, 40800), ("f", 18, 41000), ("g", 18, 41200), ("h", 18, 41400),
+                        ("i", 18, 41600), ("j", 17, 41800)):
+        assert len(screens[x]["keys_screened"]) == n and min(screens[x]["keys_screened"]) >= first, x
+        assert screens[x]["touched"] == [], x
     fresh = fresh + sum((screens[x]["keys_screened"] for x in "defghij"), [])
     assert sorted(set(loop + fresh) - {40305}) == probe.touchable_keys("loop")
     assert screens["testbench"]["keys_screened"] == probe.touchable_keys("testbench")

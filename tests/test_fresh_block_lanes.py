@@ -25,6 +25,20 @@ def test_bad_range_is_a_one_line_error(capsys):
     assert "--end (41400) must lie after --start (41400)" in capsys.readouterr().err
 
 
+def _keys(name, key):
+    """The sorted ``key`` list (``keys_examined`` or ``keys_screened``) of ``benchmarks/results/<name>.json``."""
+    return sorted(json.loads((RESULTS / f"{name}.json").read_text())[key])
+
+
+def _assert_plan_is_what_they_saw(plan, lanes: dict, screens: dict):
+    """Every round of ``lanes`` ({round: lane JSON}) plans the keys its lane examined (some), every round of
+    ``screens`` ({round: [screen JSONs]}) the keys its screens screened."""
+    for r, name in lanes.items():
+        assert plan[r]["keys"] == _keys(name, "keys_examined") and plan[r]["keys"], r
+    for r, names in screens.items():
+        assert plan[r]["keys"] == sorted(k for n in names for k in _keys(n, "keys_screened")), r
+
+
 @pytest.mark.long
 def test_the_block_41200_41399_plan_is_what_its_lanes_and_screens_saw(tmp_path):
     """For the fresh blocks 41200-41399 (laned by hand before this script) every round's keys are the keys its lane or
@@ -32,9 +46,6 @@ def test_the_block_41200_41399_plan_is_what_its_lanes_and_screens_saw(tmp_path):
     in them.  The letters named are those after the last JSON of each kind."""
     fb = bench_module("fresh_block_lanes")
     plan = {it["round"]: it for it in fb.block_plan(41200, 41400)}
-
-    def keys(name, key):
-        return sorted(json.loads((RESULTS / f"{name}.json").read_text())[key])
     lanes = {100: "diagnose_change_refined_before_position_law_round100_lane_e",
              95: "diagnose_ripple_where_law_falls_round95_lane_n",
              89: "diagnose_position_friction_dissipation_round89_lane_zi",
@@ -46,14 +57,12 @@ def test_the_block_41200_41399_plan_is_what_its_lanes_and_screens_saw(tmp_path):
                     "diagnose_beyond_training_positions_round96_screen_zn"],
                93: ["diagnose_load_untested_direction_round93_screen_y"],
                91: ["diagnose_state_check_speeds_round91_screen_ze"]}
-    for r, name in lanes.items():
-        assert plan[r]["keys"] == keys(name, "keys_examined") and plan[r]["keys"], r
+    _assert_plan_is_what_they_saw(plan, lanes, screens)
     for r, names in screens.items():
-        assert plan[r]["keys"] == sorted(k for n in names for k in keys(n, "keys_screened")), r
         assert len(plan[r]["screens"]) == len(names) and plan[r]["lane_after_screens"]
     assert plan[92]["keys"] == plan[90]["keys"] == [] and plan[92]["lane"] is plan[90]["lane"] is None
-    r101 = set(keys("diagnose_rescue_filter_slope_round101_lane_a", "keys_examined")
-               + keys("diagnose_rescue_filter_slope_round101_lane_b", "keys_examined"))
+    r101 = set(_keys("diagnose_rescue_filter_slope_round101_lane_a", "keys_examined")
+               + _keys("diagnose_rescue_filter_slope_round101_lane_b", "keys_examined"))
     assert plan[101]["keys"] and set(plan[101]["keys"]) <= r101
     # the letters after the last JSON of each kind (later blocks were laned since, so the letters move on)
     rounds = {r.number: r for r in fb.ROUNDS}
@@ -81,9 +90,6 @@ def test_the_block_41400_41599_plan_is_what_its_lanes_and_screens_saw():
     b), and round 90's lane q took 41591 after that round's fold gave it two findings set aside."""
     fb = bench_module("fresh_block_lanes")
     plan = {it["round"]: it for it in fb.block_plan(41400, 41600)}
-
-    def keys(name, key):
-        return sorted(json.loads((RESULTS / f"{name}.json").read_text())[key])
     lanes = {101: "diagnose_rescue_filter_slope_round101_lane_d",
              100: "diagnose_change_refined_before_position_law_round100_lane_f",
              90: "diagnose_closed_rival_round90_lane_q",
@@ -96,11 +102,8 @@ def test_the_block_41400_41599_plan_is_what_its_lanes_and_screens_saw():
                     "diagnose_beyond_training_positions_round96_screen_zp"],
                93: ["diagnose_load_untested_direction_round93_screen_z"],
                91: ["diagnose_state_check_speeds_round91_screen_zf"]}
-    for r, name in lanes.items():
-        assert plan[r]["keys"] == keys(name, "keys_examined") and plan[r]["keys"], r
-    for r, names in screens.items():
-        assert plan[r]["keys"] == sorted(k for n in names for k in keys(n, "keys_screened")), r
+    _assert_plan_is_what_they_saw(plan, lanes, screens)
     assert plan[95]["keys"] == plan[92]["keys"] == []
-    r102 = set(keys("diagnose_time_law_beside_stribeck_filter_slope_round102_lane_a", "keys_examined")
-               + keys("diagnose_time_law_beside_stribeck_filter_slope_round102_lane_b", "keys_examined"))
+    r102 = set(_keys("diagnose_time_law_beside_stribeck_filter_slope_round102_lane_a", "keys_examined")
+               + _keys("diagnose_time_law_beside_stribeck_filter_slope_round102_lane_b", "keys_examined"))
     assert 41591 in plan[102]["keys"] and set(plan[102]["keys"]) <= r102
