@@ -3636,6 +3636,77 @@ def mark_disturbance_confounded_with_state(prep, model, steps, alpha, min_gain) 
     return marked
 
 
+#: hundred-and-third round: a law in time beside a law of the state whose joint cannot test a Stribeck law, which a
+#: free function of the joint's state with a speed block explains and which explains that function back, is marked
+#: ambiguous with ``stribeck`` where another finding of its joint already is
+#: (:func:`mark_time_law_beside_untestable_stribeck`); rule:
+#: ``benchmarks/results/diagnose_time_law_beside_untestable_stribeck_round103_rule.txt``
+TIME_LAW_BESIDE_UNTESTABLE_STRIBECK_RULE = False
+
+
+def mark_time_law_beside_untestable_stribeck(prep, model, steps, alpha, min_gain) -> list:
+    """With :data:`TIME_LAW_BESIDE_UNTESTABLE_STRIBECK_RULE`: a friction law in time (:data:`TIME_LAW_PAIR`, an energy
+    drift or an abrupt change) of the final ``model`` that :func:`time_law_explained_by_state` checks
+    (:func:`_time_laws_beside_state`), on a joint where
+
+    * a Stribeck law is untestable (the selected training speeds span less than a factor 3,
+      :func:`~drake_est.diagnose.detectors.stribeck_speeds`: no Stribeck candidate ever competed there),
+    * another finding's step is already reported ambiguous with ``stribeck`` (the log confounds the speed with the
+      position or the level), and
+    * a free function of the joint's state whose chosen blocks hold the speed explains the law (:func:`_state_explains`)
+      while the law explains the function back (given the law the function does not predict the held-out residual),
+
+    is marked ambiguous with ``stribeck``.  The fifty-third round keeps such a law, since where the two explain each
+    other only the law keeps them apart; but where the log cannot test a Stribeck law, a law in time whose segments
+    take the friction curve's drop between the slow moves of one part of the log and the faster ones of another is
+    as much a speed law the log cannot identify (fresh loop spec 41808: a load beside Stribeck at 50 Hz with Student-t
+    noise, 97 % of the moving samples below twice vs; the load named ambiguous with Stribeck, then an abrupt change
+    at 86.3 s with 42.5 % lower held-out RMSE, whose segments differ in their viscous slope, -6.3 against -1.9 N m
+    s/rad; given the state's speed, inertia and load blocks the change lowers it by -15 %, given the change the
+    function by -5.9 %).  The model is not changed.  Returns the marked steps."""
+    if not TIME_LAW_BESIDE_UNTESTABLE_STRIBECK_RULE:
+        return []
+    marked = []
+    for e, beside in _time_laws_beside_state(model, steps):
+        j = e.joint
+        jd = prep.joints.get(j)
+        if jd is None or det.stribeck_speeds(jd.v[jd.rows][jd.train]).size:
+            continue
+        st = next((s for s in steps if s.ext is e), None)
+        if st is None or (st.competition.get("ambiguous") and "stribeck" in comp.ambiguous_rivals(st.competition)):
+            continue
+        others = [s for s in steps if s is not st and not s.ext.shared and s.ext.joint == j
+                  and s.competition.get("ambiguous") and "stribeck" in comp.ambiguous_rivals(s.competition)]
+        if not others:
+            continue
+        m0 = Model(prep, [x for x in model.exts if x is not e])
+        rows, n_far = state_check_rows(prep, j)
+        chosen = []
+        got = _state_explains(prep, m0, j, e.cols[j], alpha, min_gain, rows=rows, chosen=chosen)
+        if got is None or "speed" not in chosen:
+            continue
+        N, t, own, state = got
+        back = comp._partial_test(prep, m0, j, e.cols[j], N, alpha, min_gain, _model_solver(m0, j), rows=rows)
+        if back["significant"]:
+            continue
+        law = e.effect.replace("_", " ")
+        reason = (f"joint {j} cannot test a Stribeck law (its selected training speeds span less than a factor 3), "
+                  f"its {others[0].ext.effect.replace('_', ' ')} is already not separated from one, and a free "
+                  f"function of its state ({', '.join(chosen)}) and the {law} explain each other: given the function "
+                  f"the {law} lowers the held-out RMSE by {100 * t['rmse_reduction']:.1f} % (p = {t['p_value']:.2g}), "
+                  f"given the {law} the function lowers it by {100 * back['rmse_reduction']:.1f} % "
+                  f"(p = {back['p_value']:.2g}); alone the {law} lowers it by {100 * own:.1f} %, the function by "
+                  f"{100 * state:.1f} %: where the moves differ between the log's parts, a speed law the log cannot "
+                  "identify leaves the same residual")
+        info = {"blocks": list(chosen), "finding_given_state": comp._brief(t), "state_given_finding": comp._brief(back),
+                "heldout_rmse_reduction_alone": float(own), "state_heldout_rmse_reduction_alone": float(state)}
+        if n_far:
+            info["held_out_rows_beyond_training_speeds"] = n_far
+        _add_rivals(st, ["stribeck"], "untestable_stribeck_beside", info, reason)
+        marked.append(st)
+    return marked
+
+
 def _refit_steps(prep, steps, reshaped, sigma) -> None:
     """Parameters are reported from the fit of each step (report.effect_parameters): the steps from the first one
     whose extension a backfit reshaped (``reshaped``: (joint, old, new extension), a new Stribeck shape or
@@ -4099,6 +4170,7 @@ def _run_diagnosis(log, robot, joints, seed, max_findings, alpha, min_gain) -> D
                 mark_position_laws_within_speed_curve(prep, model, fit, out[3], unexplained, out[7], readings)
                 mark_load_in_untested_direction(prep, model, fit, out[3], out[7])
                 mark_ripple_beside_split_locked_disturbance(prep, out[0], out[3])
+                mark_time_law_beside_untestable_stribeck(prep, model, out[3], alpha, min_gain)
                 break
             effect, joint, why = hit
             out = close_and_search(effect, joint, {"effect": effect, "joint": int(joint), **why})
