@@ -49,6 +49,8 @@ class Round(NamedTuple):
 
 #: the kept rounds with a probe for fresh blocks, newest first (the order the docs keep their sections in)
 ROUNDS = (
+    Round(103, "probe_time_law_beside_untestable_stribeck.py", "touchable",
+          "diagnose_time_law_beside_untestable_stribeck_round103"),
     Round(102, "probe_time_law_beside_stribeck_filter_slope.py", "touchable",
           "diagnose_time_law_beside_stribeck_filter_slope_round102"),
     Round(101, "probe_rescue_filter_slope.py", "touchable", "diagnose_rescue_filter_slope_round101"),

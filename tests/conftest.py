@@ -147,6 +147,10 @@ REFOLDED_ROUND_101 = refolded_rows("diagnose_rescue_filter_slope_round101_lane_*
 #: the keys whose kept rows the hundred-and-second round folded (its rule-on rows that differ from the rows kept before
 #: them): 41591 (mended), which earlier rounds' lanes and screens saw as it was
 REFOLDED_ROUND_102 = refolded_rows("diagnose_time_law_beside_stribeck_filter_slope_round102_lane_*.json")
+#: the keys whose kept rows the hundred-and-third round folded (its rule-on rows that differ from the rows kept before
+#: them): 41808 (mended: its abrupt change now ambiguous with stribeck too), which earlier rounds' lanes and screens
+#: saw as it was
+REFOLDED_ROUND_103 = refolded_rows("diagnose_time_law_beside_untestable_stribeck_round103_lane_*.json")
 
 
 def probe_results(pattern: str):

@@ -3641,7 +3641,7 @@ def mark_disturbance_confounded_with_state(prep, model, steps, alpha, min_gain) 
 #: ambiguous with ``stribeck`` where another finding of its joint already is
 #: (:func:`mark_time_law_beside_untestable_stribeck`); rule:
 #: ``benchmarks/results/diagnose_time_law_beside_untestable_stribeck_round103_rule.txt``
-TIME_LAW_BESIDE_UNTESTABLE_STRIBECK_RULE = False
+TIME_LAW_BESIDE_UNTESTABLE_STRIBECK_RULE = True
 
 
 def mark_time_law_beside_untestable_stribeck(prep, model, steps, alpha, min_gain) -> list:
