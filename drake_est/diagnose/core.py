@@ -2123,7 +2123,9 @@ def time_law_explained_by_state(prep, model, steps, alpha, min_gain):
     the law keeps them apart (loop spec 11098 on an AVX2 CPU, a planted change beside a ripple).  Beside a Stribeck
     law the function is also offered the derivative filter's error through the friction curve's slope
     (:func:`filter_slope_block`, hundred-and-second round; the entry then holds ``filter_slope_chosen`` where that
-    block joined the function).
+    block joined the function).  Where the function and the law explain each other on a joint that cannot test a
+    Stribeck law, :func:`mark_time_law_beside_untestable_stribeck` reports the kept law ambiguous with ``stribeck``
+    once the search ends (hundred-and-third round).
     :func:`time_law_within_speed_curve` holds the law against a curve of the speed only, which does not see direction
     or how long ago the joint reversed.  Loop spec 13761 (beside Stribeck): an asymmetric level beside Stribeck at 10
     Hz with Student-t noise; an abrupt change named with the level's part, ambiguous with a load, lowers the held-out
