@@ -148,7 +148,7 @@ def test_kept_and_its_table_is_its_jsons():
     assert keys[0] == [13056, 41808]
     touchable = probe.kept_keys("loop", probe.touchable)
     assert [k for k in keys[0] if k not in REFOLDED_ROUND_103] == [k for k in touchable if k < 42000]
-    # lane c: the touchable rows of the fresh blocks 42000-42799 (42000-42599 have none)
+    # lane c: the touchable rows of the fresh blocks 42000-42999 (42000-42599 and 42800-42999 have none)
     assert keys[2] == [k for k in touchable if k >= 42000] == [42666]
     assert probe.kept_keys("testbench", probe.touchable) == []
     kept = {k: r for (f, _, k), (_, r) in bench_module("bench_diagnose_testbench").kept_rows_naming("any").items()
