@@ -103,6 +103,23 @@ def closed_loop_off_and_on(k: int, switch: str, while_on=None, held=()):
     return mod, spec, truth, off, on, extra
 
 
+def recording(name: str, record):
+    """A ``while_on`` for :func:`closed_loop_off_and_on`: wraps ``core.<name>`` so that each call's
+    ``record(result, args, kwargs)`` (an iterable: what to keep of that call) is appended to the list it returns."""
+    def while_on(mp):
+        from drake_est.diagnose import core
+        seen = []
+        original = getattr(core, name)
+
+        def counted(*a, **kw):
+            got = original(*a, **kw)
+            seen.extend(record(got, a, kw))
+            return got
+        mp.setattr(core, name, counted)
+        return seen
+    return while_on
+
+
 def load_set_aside_as_not_significant(d) -> bool:
     """Whether a report set joint 1's position load aside because a fresh re-detection of it was not significant given
     the other findings (what the seventy-third and seventy-fourth rounds' checks are about)."""

@@ -126,19 +126,11 @@ def design_case():
     hundred-and-first round's switch off and on: (module, spec, truth, off, on, the rule's refusals while on).  The
     hundred-and-second round's switch is held off in both: with this round's off, its check sets the change aside too
     (``test_spec_36374_without_this_round_the_next_one_sets_the_change_aside``)."""
-    from conftest import closed_loop_off_and_on
+    from conftest import closed_loop_off_and_on, recording
 
-    def while_on(mp):
-        seen = []
-        original = core.rescue_explained_by_filter_slope
-
-        def counted(prep, m0, ext, alpha=core.ALPHA):
-            got = original(prep, m0, ext, alpha)
-            if got is not None:
-                seen.append((ext.effect, got))
-            return got
-        mp.setattr(core, "rescue_explained_by_filter_slope", counted)
-        return seen
+    # core calls it as rescue_explained_by_filter_slope(prep, m0, ext, alpha): the extension is the third argument
+    while_on = recording("rescue_explained_by_filter_slope",
+                         lambda got, a, kw: [] if got is None else [(a[2].effect, got)])
     return closed_loop_off_and_on(36374, "TIME_LAW_RESCUE_FILTER_SLOPE_RULE", while_on,
                                   held=("TIME_LAW_BESIDE_STRIBECK_FILTER_SLOPE_RULE",))
 

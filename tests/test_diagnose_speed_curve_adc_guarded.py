@@ -111,36 +111,16 @@ def test_kept_and_its_table_is_its_jsons():
     assert sorted(k for _, d in files[:2] for k in d["keys_examined"]) == listed and not examined["testbench"]
     assert files[2][1]["keys_examined"] == probe.screened_keys(
         [root / "diagnose_speed_curve_adc_guarded_round98_screen_h.json"]) and files[2][1]["touched"] == []
-    # lane d: 41100, the one screen m lists (a load at 10 Hz with a quantized torque); no law marked
-    assert files[3][1]["keys_examined"] == probe.screened_keys(
-        [root / "diagnose_speed_curve_adc_guarded_round98_screen_m.json"]) == [41100] and files[3][1]["touched"] == []
-    # lane e: 41350, the one screen n lists (a load at 10 Hz with a quantized torque over 300 s); no law marked
-    assert files[4][1]["keys_examined"] == probe.screened_keys(
-        [root / "diagnose_speed_curve_adc_guarded_round98_screen_n.json"]) == [41350] and files[4][1]["touched"] == []
-    # lane f: 41407 and 41473, the two screen o lists (a position friction at 10 Hz with a quantized torque); no law
-    # marked
-    assert files[5][1]["keys_examined"] == probe.screened_keys(
-        [root / "diagnose_speed_curve_adc_guarded_round98_screen_o.json"]) == [41407, 41473]
-    assert files[5][1]["touched"] == []
-    # lane g: 41605 and 41677, the two screen p lists (a position friction at 10 Hz with a quantized torque, the
-    # second beside a disturbance); no law marked
-    assert files[6][1]["keys_examined"] == probe.screened_keys(
-        [root / "diagnose_speed_curve_adc_guarded_round98_screen_p.json"]) == [41605, 41677]
-    assert files[6][1]["touched"] == []
-    # lane h: 41869, the one screen q lists (a position friction at 10 Hz with a quantized torque); no law marked
-    assert files[7][1]["keys_examined"] == probe.screened_keys(
-        [root / "diagnose_speed_curve_adc_guarded_round98_screen_q.json"]) == [41869] and files[7][1]["touched"] == []
-    # lane i: 42010, the one screen r lists (a load at 10 Hz with a quantized torque over 300 s); no law marked
-    assert files[8][1]["keys_examined"] == probe.screened_keys(
-        [root / "diagnose_speed_curve_adc_guarded_round98_screen_r.json"]) == [42010] and files[8][1]["touched"] == []
-    # lane j: 42529, the one screen t lists (a position friction at 10 Hz with a quantized torque); no law marked
-    assert files[9][1]["keys_examined"] == probe.screened_keys(
-        [root / "diagnose_speed_curve_adc_guarded_round98_screen_t.json"]) == [42529] and files[9][1]["touched"] == []
-    # lane k: 42661 and 42707, the two screen u lists (a position friction at 10 Hz and an asymmetric level at 1000 Hz,
-    # both with a quantized torque); no law marked
-    assert files[10][1]["keys_examined"] == probe.screened_keys(
-        [root / "diagnose_speed_curve_adc_guarded_round98_screen_u.json"]) == [42661, 42707]
-    assert files[10][1]["touched"] == []
+    # lanes d-k, each on the keys one fresh screen lists; none marked a law: (lane index, screen, keys) -- d: a load at
+    # 10 Hz with a quantized torque; e: the same over 300 s; f: position frictions at 10 Hz, quantized; g: the same,
+    # the second beside a disturbance; h: a position friction at 10 Hz, quantized; i: a load at 10 Hz, quantized, over
+    # 300 s; j: a position friction at 10 Hz, quantized; k: a position friction at 10 Hz and an asymmetric level at
+    # 1000 Hz, both quantized
+    for i, x, lane in ((3, "m", [41100]), (4, "n", [41350]), (5, "o", [41407, 41473]), (6, "p", [41605, 41677]),
+                       (7, "q", [41869]), (8, "r", [42010]), (9, "t", [42529]), (10, "u", [42661, 42707])):
+        assert files[i][1]["keys_examined"] == probe.screened_keys(
+            [root / f"diagnose_speed_curve_adc_guarded_round98_screen_{x}.json"]) == lane, x
+        assert files[i][1]["touched"] == [], x
     assert sorted(t["k"] for _, d in files for t in d["touched"]) == [7251, 11891, 15323, 17828, 33286]
     for _, d in files:
         for t in d["touched"]:

@@ -78,20 +78,9 @@ def test_probe_touchable_and_control():
 def design_case():
     """Fresh spec 41591 (an asymmetric level beside Stribeck at 250 Hz, a quantized torque) diagnosed with the
     hundred-and-second round's switch off and on: (module, spec, truth, off, on, the check's set-asides while on)."""
-    from conftest import closed_loop_off_and_on
-
-    def while_on(mp):
-        seen = []
-        original = core.time_law_explained_by_state
-
-        def counted(*a, **kw):
-            got = original(*a, **kw)
-            if got is not None:
-                seen.append(got)
-            return got
-        mp.setattr(core, "time_law_explained_by_state", counted)
-        return seen
-    return closed_loop_off_and_on(41591, RULE, while_on)
+    from conftest import closed_loop_off_and_on, recording
+    return closed_loop_off_and_on(41591, RULE, recording("time_law_explained_by_state",
+                                                          lambda got, a, kw: [] if got is None else [got]))
 
 
 @pytest.mark.long

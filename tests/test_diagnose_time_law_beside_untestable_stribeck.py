@@ -98,19 +98,9 @@ def test_probe_touchable_and_control():
 def design_case():
     """Fresh spec 41808 (a load beside Stribeck at 50 Hz with Student-t noise) diagnosed with the hundred-and-third
     round's switch off and on: (module, spec, truth, off, on, the mark's marked steps while on)."""
-    from conftest import closed_loop_off_and_on
-
-    def while_on(mp):
-        seen = []
-        original = core.mark_time_law_beside_untestable_stribeck
-
-        def counted(*a, **kw):
-            got = original(*a, **kw)
-            seen.extend(got)
-            return got
-        mp.setattr(core, "mark_time_law_beside_untestable_stribeck", counted)
-        return seen
-    return closed_loop_off_and_on(41808, RULE, while_on)
+    from conftest import closed_loop_off_and_on, recording
+    return closed_loop_off_and_on(41808, RULE, recording("mark_time_law_beside_untestable_stribeck",
+                                                          lambda got, a, kw: got))
 
 
 @pytest.mark.long

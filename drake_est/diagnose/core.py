@@ -2072,12 +2072,21 @@ def _state_explains_one_way(prep, m0, j, C, alpha, min_gain, extra=None, chosen=
     rows of :func:`state_check_rows` left out of every test (ninety-first round), 0 when none.  ``extra``: more
     blocks offered to the function (:func:`_state_tests`), ``chosen``: a list the joined blocks' names are appended
     to."""
+    got = _state_explains_with_back(prep, m0, j, C, alpha, min_gain, extra=extra, chosen=chosen)
+    return got if got is not None and got[1]["significant"] else None
+
+
+def _state_explains_with_back(prep, m0, j, C, alpha, min_gain, extra=None, chosen=None):
+    """``(what _state_explains returned, the function's partial test given C, held-out rows left out)`` on the rows of
+    :func:`state_check_rows` where a free function of joint ``j``'s state explains the finding with columns ``C``,
+    None otherwise: the tests :func:`_state_explains_one_way` (the function still predicts given ``C``) and
+    :func:`mark_time_law_beside_untestable_stribeck` (it does not) read."""
     rows, n_far = state_check_rows(prep, j)
     got = _state_explains(prep, m0, j, C, alpha, min_gain, rows=rows, extra=extra, chosen=chosen)
     if got is None:
         return None
     back = comp._partial_test(prep, m0, j, C, got[0], alpha, min_gain, _model_solver(m0, j), rows=rows)
-    return (got, back, n_far) if back["significant"] else None
+    return got, back, n_far
 
 
 def _beyond_speeds_note(why, n_far) -> dict:
@@ -3175,6 +3184,11 @@ def _joint_candidates(prep, model, fit, j, accepted):
             if not c.shared and c.joint == j and list(c.cols) == [j]]
 
 
+def _ambiguous_with(st, effect) -> bool:
+    """Whether the step ``st`` is already reported ambiguous with ``effect`` (one of its rivals)."""
+    return bool(st.competition.get("ambiguous")) and effect in comp.ambiguous_rivals(st.competition)
+
+
 def _add_rivals(st, new, key, info, reason) -> None:
     """Mark the step ``st`` ambiguous with the rivals ``new`` (after those it already had), store ``info`` under
     ``key`` of its competition and add ``reason`` to the competition's reason (the final marks that turn a named
@@ -3254,7 +3268,7 @@ def mark_ripple_beside_split_locked_disturbance(prep, fit0, steps) -> list:
         e = st.ext
         if e.shared or e.effect != "motor_position_ripple" or e.joint not in prep.joints:
             continue
-        if st.competition.get("ambiguous") and "time_periodic_disturbance" in comp.ambiguous_rivals(st.competition):
+        if _ambiguous_with(st, "time_periodic_disturbance"):
             continue
         got = split_locked_disturbance(prep, e.joint, _residual(prep, fit0, e.joint))
         if got is None:
@@ -3313,7 +3327,7 @@ def mark_load_in_untested_direction(prep, model, fit, steps, sigma) -> list:
         if (e.shared or e.effect != "position_dependent_load" or ("asymmetric_coulomb", e.joint) in named
                 or not any(x is e for x in model.exts)):
             continue
-        if st.competition.get("ambiguous") and "asymmetric_coulomb" in comp.ambiguous_rivals(st.competition):
+        if _ambiguous_with(st, "asymmetric_coulomb"):
             continue
         j = e.joint
         jd = prep.joints[j]
@@ -3567,7 +3581,7 @@ def mark_position_laws_within_speed_curve(prep, model, fit, steps, unexplained, 
             e = st.ext
             if e.shared or e.joint != j or e.effect not in comp.POSITION_LAWS:
                 continue
-            if st.competition.get("ambiguous") and "stribeck" in comp.ambiguous_rivals(st.competition):
+            if _ambiguous_with(st, "stribeck"):
                 continue
             _add_rivals(st, ["stribeck"], "speed_curve_in_place", got, reason)
             marked.append(st)
@@ -3675,22 +3689,18 @@ def mark_time_law_beside_untestable_stribeck(prep, model, steps, alpha, min_gain
         if jd is None or det.stribeck_speeds(jd.v[jd.rows][jd.train]).size:
             continue
         st = next((s for s in steps if s.ext is e), None)
-        if st is None or (st.competition.get("ambiguous") and "stribeck" in comp.ambiguous_rivals(st.competition)):
+        if st is None or _ambiguous_with(st, "stribeck"):
             continue
         others = [s for s in steps if s is not st and not s.ext.shared and s.ext.joint == j
-                  and s.competition.get("ambiguous") and "stribeck" in comp.ambiguous_rivals(s.competition)]
+                  and _ambiguous_with(s, "stribeck")]
         if not others:
             continue
         m0 = Model(prep, [x for x in model.exts if x is not e])
-        rows, n_far = state_check_rows(prep, j)
         chosen = []
-        got = _state_explains(prep, m0, j, e.cols[j], alpha, min_gain, rows=rows, chosen=chosen)
-        if got is None or "speed" not in chosen:
+        both = _state_explains_with_back(prep, m0, j, e.cols[j], alpha, min_gain, chosen=chosen)
+        if both is None or "speed" not in chosen or both[1]["significant"]:
             continue
-        N, t, own, state = got
-        back = comp._partial_test(prep, m0, j, e.cols[j], N, alpha, min_gain, _model_solver(m0, j), rows=rows)
-        if back["significant"]:
-            continue
+        (_, t, own, state), back, n_far = both
         law = e.effect.replace("_", " ")
         reason = (f"joint {j} cannot test a Stribeck law (its selected training speeds span less than a factor 3), "
                   f"its {others[0].ext.effect.replace('_', ' ')} is already not separated from one, and a free "
