@@ -80,3 +80,15 @@ def test_refused_logs_are_counted_and_named():
     assert correct == 95
     assert f"1 refused (41886: too few samples in the training or validation half), so 99 logs; {correct} / 99 correct" in text
     assert F.table_rows(d, name, "b50e034")[0].startswith("| 41800-41899, b50e034, run once")
+
+
+def test_every_table_line_of_the_docs_stands_on_its_own_line():
+    """A table row or header spliced into a sentence (as a scripted edit once put round 103's table inside its "Rule"
+    paragraph) does not render as a table: every line of the docs' sources that holds a table cell of a JSON or the
+    header starts with '|'."""
+    bad = []
+    for path in sorted((ROOT / "docs" / "readme").glob("*.md")):
+        for n, line in enumerate(path.read_text().splitlines(), 1):
+            if ("| `diagnose_" in line or "| JSON |" in line) and not line.startswith("|"):
+                bad.append(f"{path.name}:{n}")
+    assert bad == []
