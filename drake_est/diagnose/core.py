@@ -2250,7 +2250,7 @@ def _laws_of_state(model, j) -> list:
 #: state (:func:`time_law_explained_by_state`) also checks a law whose step is reported ambiguous with laws of the
 #: state when every one of those laws is itself a finding of the final model on the joint
 #: (:func:`_state_rivals_named_beside`); rule: ``benchmarks/results/diagnose_time_law_rival_named_round104_rule.txt``
-TIME_LAW_RIVAL_NAMED_RULE = False
+TIME_LAW_RIVAL_NAMED_RULE = True
 
 
 def _state_rivals(steps, e) -> list:
