@@ -49,6 +49,8 @@ class Round(NamedTuple):
 
 #: the kept rounds with a probe for fresh blocks, newest first (the order the docs keep their sections in)
 ROUNDS = (
+    Round(105, "probe_time_law_beside_stribeck_both_ways.py", "touchable",
+          "diagnose_time_law_beside_stribeck_both_ways_round105"),
     Round(104, "probe_time_law_rival_named.py", "touchable", "diagnose_time_law_rival_named_round104"),
     Round(103, "probe_time_law_beside_untestable_stribeck.py", "touchable",
           "diagnose_time_law_beside_untestable_stribeck_round103"),

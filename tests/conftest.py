@@ -171,6 +171,9 @@ REFOLDED_ROUND_103 = refolded_rows("diagnose_time_law_beside_untestable_stribeck
 #: the keys whose kept rows the hundred-and-fourth round folded: 42666 (its energy drift set aside, the wrong name now a
 #: miss of Stribeck), which earlier rounds' lanes and screens saw as it was
 REFOLDED_ROUND_104 = refolded_rows("diagnose_time_law_rival_named_round104_lane_*.json")
+#: the keys whose kept rows the hundred-and-fifth round folded: 43172 (mended: its abrupt change now ambiguous with
+#: stribeck too), which earlier rounds' lanes and screens saw as it was
+REFOLDED_ROUND_105 = refolded_rows("diagnose_time_law_beside_stribeck_both_ways_round105_lane_*.json")
 
 
 def probe_results(pattern: str):

@@ -3757,7 +3757,7 @@ def mark_time_law_beside_untestable_stribeck(prep, model, steps, alpha, min_gain
 #: with a speed block explains, and which explains that function back, is marked ambiguous with ``stribeck``
 #: (:func:`mark_time_law_beside_stribeck_both_ways`); rule:
 #: ``benchmarks/results/diagnose_time_law_beside_stribeck_both_ways_round105_rule.txt``
-TIME_LAW_BESIDE_STRIBECK_BOTH_WAYS_RULE = False
+TIME_LAW_BESIDE_STRIBECK_BOTH_WAYS_RULE = True
 
 
 def mark_time_law_beside_stribeck_both_ways(prep, model, steps, alpha, min_gain) -> list:
