@@ -3686,6 +3686,30 @@ def mark_disturbance_confounded_with_state(prep, model, steps, alpha, min_gain) 
     return marked
 
 
+def _explain_each_other_with_speed(prep, model, e, alpha, min_gain, extra=None):
+    """Where a free function of the state of the law in time ``e``'s joint, whose chosen blocks hold the speed, and
+    ``e`` explain each other in the final ``model`` (:func:`_state_explains_with_back`: given the function the law
+    does not predict the held-out residual, nor the function given the law; ``extra``: more blocks offered to the
+    function): ``(the chosen blocks, the evidence, the numbers in words)``, else None.  The test of the
+    hundred-and-third and hundred-and-fifth rounds' marks."""
+    chosen = []
+    m0 = Model(prep, [x for x in model.exts if x is not e])
+    both = _state_explains_with_back(prep, m0, e.joint, e.cols[e.joint], alpha, min_gain, extra=extra, chosen=chosen)
+    if both is None or "speed" not in chosen or both[1]["significant"]:
+        return None
+    (_, t, own, state), back, n_far = both
+    law = e.effect.replace("_", " ")
+    numbers = (f"given the function the {law} lowers the held-out RMSE by {100 * t['rmse_reduction']:.1f} % "
+               f"(p = {t['p_value']:.2g}), given the {law} the function lowers it by "
+               f"{100 * back['rmse_reduction']:.1f} % (p = {back['p_value']:.2g}); alone the {law} lowers it by "
+               f"{100 * own:.1f} %, the function by {100 * state:.1f} %")
+    info = {"blocks": list(chosen), "finding_given_state": comp._brief(t), "state_given_finding": comp._brief(back),
+            "heldout_rmse_reduction_alone": float(own), "state_heldout_rmse_reduction_alone": float(state)}
+    if n_far:
+        info["held_out_rows_beyond_training_speeds"] = n_far
+    return chosen, info, numbers
+
+
 #: hundred-and-third round: a law in time beside a law of the state whose joint cannot test a Stribeck law, which a
 #: free function of the joint's state with a speed block explains and which explains that function back, is marked
 #: ambiguous with ``stribeck`` where another finding of its joint already is
@@ -3729,25 +3753,15 @@ def mark_time_law_beside_untestable_stribeck(prep, model, steps, alpha, min_gain
                   and _ambiguous_with(s, "stribeck")]
         if not others:
             continue
-        m0 = Model(prep, [x for x in model.exts if x is not e])
-        chosen = []
-        both = _state_explains_with_back(prep, m0, j, e.cols[j], alpha, min_gain, chosen=chosen)
-        if both is None or "speed" not in chosen or both[1]["significant"]:
+        got = _explain_each_other_with_speed(prep, model, e, alpha, min_gain)
+        if got is None:
             continue
-        (_, t, own, state), back, n_far = both
-        law = e.effect.replace("_", " ")
+        chosen, info, numbers = got
         reason = (f"joint {j} cannot test a Stribeck law (its selected training speeds span less than a factor 3), "
                   f"its {others[0].ext.effect.replace('_', ' ')} is already not separated from one, and a free "
-                  f"function of its state ({', '.join(chosen)}) and the {law} explain each other: given the function "
-                  f"the {law} lowers the held-out RMSE by {100 * t['rmse_reduction']:.1f} % (p = {t['p_value']:.2g}), "
-                  f"given the {law} the function lowers it by {100 * back['rmse_reduction']:.1f} % "
-                  f"(p = {back['p_value']:.2g}); alone the {law} lowers it by {100 * own:.1f} %, the function by "
-                  f"{100 * state:.1f} %: where the moves differ between the log's parts, a speed law the log cannot "
+                  f"function of its state ({', '.join(chosen)}) and the {e.effect.replace('_', ' ')} explain each "
+                  f"other: {numbers}: where the moves differ between the log's parts, a speed law the log cannot "
                   "identify leaves the same residual")
-        info = {"blocks": list(chosen), "finding_given_state": comp._brief(t), "state_given_finding": comp._brief(back),
-                "heldout_rmse_reduction_alone": float(own), "state_heldout_rmse_reduction_alone": float(state)}
-        if n_far:
-            info["held_out_rows_beyond_training_speeds"] = n_far
         _add_rivals(st, ["stribeck"], "untestable_stribeck_beside", info, reason)
         marked.append(st)
     return marked
@@ -3783,25 +3797,14 @@ def mark_time_law_beside_stribeck_both_ways(prep, model, steps, alpha, min_gain)
         st = next((s for s in steps if s.ext is e), None)
         if st is None or _ambiguous_with(st, "stribeck"):
             continue
-        j = e.joint
-        m0 = Model(prep, [x for x in model.exts if x is not e])
-        chosen = []
-        both = _state_explains_with_back(prep, m0, j, e.cols[j], alpha, min_gain, extra=filter_slope_block(prep, j),
-                                         chosen=chosen)
-        if both is None or "speed" not in chosen or both[1]["significant"]:
+        got = _explain_each_other_with_speed(prep, model, e, alpha, min_gain, extra=filter_slope_block(prep, e.joint))
+        if got is None:
             continue
-        (_, t, own, state), back, n_far = both
-        law = e.effect.replace("_", " ")
-        reason = (f"a free function of joint {j}'s state ({', '.join(chosen)}) and the {law} explain each other beside "
-                  f"its Stribeck law: given the function the {law} lowers the held-out RMSE by "
-                  f"{100 * t['rmse_reduction']:.1f} % (p = {t['p_value']:.2g}), given the {law} the function lowers "
-                  f"it by {100 * back['rmse_reduction']:.1f} % (p = {back['p_value']:.2g}); alone the {law} lowers it "
-                  f"by {100 * own:.1f} %, the function by {100 * state:.1f} %: where the moves differ between the "
-                  "log's parts, the misfit of the Stribeck law's fixed shape leaves the same residual")
-        info = {"blocks": list(chosen), "finding_given_state": comp._brief(t), "state_given_finding": comp._brief(back),
-                "heldout_rmse_reduction_alone": float(own), "state_heldout_rmse_reduction_alone": float(state)}
-        if n_far:
-            info["held_out_rows_beyond_training_speeds"] = n_far
+        chosen, info, numbers = got
+        reason = (f"a free function of joint {e.joint}'s state ({', '.join(chosen)}) and the "
+                  f"{e.effect.replace('_', ' ')} explain each other beside its Stribeck law: {numbers}: where the "
+                  "moves differ between the log's parts, the misfit of the Stribeck law's fixed shape leaves the same "
+                  "residual")
         _add_rivals(st, ["stribeck"], "stribeck_shape_beside", info, reason)
         marked.append(st)
     return marked
