@@ -37,7 +37,7 @@ from probe_position_friction_halves import row_class  # noqa: E402,F401
 from probe_ripple_before_position_law import (  # noqa: E402,F401
     drawn_control_keys, examined_keys, touchable_or_control_keys_cli)
 from probe_runner import kept_keys, probe_main, run_rule_probe  # noqa: E402
-from probe_time_law_beside_untestable_stribeck import findings  # noqa: E402,F401
+from probe_time_law_beside_untestable_stribeck import findings, marked_records  # noqa: E402,F401
 
 from drake_est.diagnose.core import TIME_LAWS  # noqa: E402
 
@@ -77,17 +77,7 @@ def keys_cli(argv) -> None:
 
 def _record(got, a, kw):
     """The records of the laws the mark turned ambiguous with Stribeck (None: it marked none)."""
-    if not got:
-        return None
-    out = []
-    for st in got:
-        info = st.competition["stribeck_shape_beside"]
-        out.append({"effect": st.ext.effect, "joint": int(st.ext.joint), "blocks": list(info["blocks"]),
-                    "rmse_reduction_given_state": float(info["finding_given_state"]["rmse_reduction"]),
-                    "rmse_reduction_of_state_given_law": float(info["state_given_finding"]["rmse_reduction"]),
-                    "rmse_reduction_alone": float(info["heldout_rmse_reduction_alone"]),
-                    "state_rmse_reduction": float(info["state_heldout_rmse_reduction_alone"])})
-    return out
+    return marked_records(got, "stribeck_shape_beside")
 
 
 def run(out_path: str, keys, family: str = "loop") -> dict:

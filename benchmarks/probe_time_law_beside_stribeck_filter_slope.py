@@ -74,10 +74,11 @@ def keys_cli(argv) -> None:
     touchable_or_control_keys_cli(argv, touchable, control_keys)
 
 
-def _record(got, a, kw):
-    """The record of one law set aside with the filter's block among the state function's chosen blocks (None: the
-    check set nothing aside, or set it aside without that block)."""
-    if got is None or not got[2].get("filter_slope_chosen"):
+def state_set_aside_record(got, flag: str):
+    """The record of one law that ``core.time_law_explained_by_state`` set aside (``got``: its ``(effect, joint,
+    why)``) where its entry holds ``flag`` (None: the check set nothing aside, or its entry lacks ``flag``): the law,
+    the state function's size and the held-out tests it read (this probe's and the hundred-and-fourth round's)."""
+    if got is None or not got[2].get(flag):
         return None
     effect, joint, why = got
     t = why["state_law_test"]
@@ -85,6 +86,12 @@ def _record(got, a, kw):
             "rmse_reduction_given_state": float(t["rmse_reduction"]), "p_value_given_state": float(t["p_value"]),
             "rmse_reduction_alone": float(why["heldout_rmse_reduction_alone"]),
             "state_rmse_reduction": float(why["state_heldout_rmse_reduction"])}
+
+
+def _record(got, a, kw):
+    """The record of one law set aside with the filter's block among the state function's chosen blocks (None: the
+    check set nothing aside, or set it aside without that block)."""
+    return state_set_aside_record(got, "filter_slope_chosen")
 
 
 def run(out_path: str, keys, family: str = "loop") -> dict:

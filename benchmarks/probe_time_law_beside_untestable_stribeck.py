@@ -89,19 +89,26 @@ def keys_cli(argv) -> None:
     touchable_or_control_keys_cli(argv, touchable, control_keys)
 
 
-def _record(got, a, kw):
-    """The records of the laws the mark turned ambiguous with Stribeck (None: it marked none)."""
+def marked_records(got, key: str):
+    """The records of the laws a mark turned ambiguous with Stribeck (``got``: the marked steps; None: it marked
+    none), each from the evidence under the step's competition ``key``: this probe's and the hundred-and-fifth
+    round's."""
     if not got:
         return None
     out = []
     for st in got:
-        info = st.competition["untestable_stribeck_beside"]
+        info = st.competition[key]
         out.append({"effect": st.ext.effect, "joint": int(st.ext.joint), "blocks": list(info["blocks"]),
                     "rmse_reduction_given_state": float(info["finding_given_state"]["rmse_reduction"]),
                     "rmse_reduction_of_state_given_law": float(info["state_given_finding"]["rmse_reduction"]),
                     "rmse_reduction_alone": float(info["heldout_rmse_reduction_alone"]),
                     "state_rmse_reduction": float(info["state_heldout_rmse_reduction_alone"])})
     return out
+
+
+def _record(got, a, kw):
+    """The records of the laws the mark turned ambiguous with Stribeck (None: it marked none)."""
+    return marked_records(got, "untestable_stribeck_beside")
 
 
 def run(out_path: str, keys, family: str = "loop") -> dict:

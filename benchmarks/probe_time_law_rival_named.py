@@ -38,6 +38,7 @@ from probe_position_friction_halves import row_class  # noqa: E402,F401
 from probe_ripple_before_position_law import (  # noqa: E402,F401
     drawn_control_keys, examined_keys, touchable_or_control_keys_cli)
 from probe_runner import kept_keys, probe_main, run_rule_probe  # noqa: E402
+from probe_time_law_beside_stribeck_filter_slope import state_set_aside_record  # noqa: E402
 from probe_time_law_beside_untestable_stribeck import findings  # noqa: E402,F401
 
 from drake_est.diagnose.core import TIME_LAWS  # noqa: E402
@@ -81,17 +82,12 @@ def keys_cli(argv) -> None:
 
 
 def _record(got, a, kw):
-    """The record of one law set aside that only the rule let the check hold (None: the check set nothing aside, or a
-    law the forty-eighth round already held)."""
-    if got is None or not got[2].get("ambiguous_with_named_beside"):
-        return None
-    effect, joint, why = got
-    t = why["state_law_test"]
-    return {"effect": effect, "joint": int(joint), "ambiguous_with": list(why["ambiguous_with_named_beside"]),
-            "state_columns": int(why["state_columns"]), "rmse_reduction_given_state": float(t["rmse_reduction"]),
-            "p_value_given_state": float(t["p_value"]),
-            "rmse_reduction_alone": float(why["heldout_rmse_reduction_alone"]),
-            "state_rmse_reduction": float(why["state_heldout_rmse_reduction"])}
+    """The record of one law set aside that only the rule let the check hold, with the named laws of the state it was
+    ambiguous with (None: the check set nothing aside, or a law the forty-eighth round already held)."""
+    rec = state_set_aside_record(got, "ambiguous_with_named_beside")
+    if rec is not None:
+        rec["ambiguous_with"] = list(got[2]["ambiguous_with_named_beside"])
+    return rec
 
 
 def run(out_path: str, keys, family: str = "loop") -> dict:
