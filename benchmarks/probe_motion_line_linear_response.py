@@ -1,0 +1,82 @@
+"""The hundred-and-sixth round's probe: the free function of the state that a time-periodic candidate at a line of
+the motion must beat is also offered a free linear response to the joint's acceleration.
+
+A time-periodic candidate at a line of the motion (``detectors.time_periodic_at_motion_line``) must predict the
+held-out residual given a free function of its joint's state (``core.motion_line_state_test``): every misfit of the
+model's laws of the state repeats with the motion.  A filter of the motion does too: fresh loop spec 44020 (an elastic
+gear, out of the vocabulary, at 100 Hz on multisine moves over 300 s) names a disturbance at 0.149 Hz, on the
+multisine's 0.150 Hz line, which given the state's function lowers the held-out RMSE by 7.3 % and given a 30-lag
+linear response to the acceleration (``core.linear_response_nuisance``) by -0.1 %.  The rule
+(``core.MOTION_LINE_LINEAR_RESPONSE_RULE``; rule file:
+``benchmarks/results/diagnose_motion_line_linear_response_round106_rule.txt``) offers that response to the state's
+function as one more block (``core.motion_line_state_extra``), joined only where it lowers the held-out error.
+
+The candidate exists only on the joints of ``core.motion_line_gate``, so the rule can only change a log whose gate is
+not empty: ``bench_diagnose_testbench.py --kept-with-count motion_line_gate`` lists those (no diagnosis), and
+``--keys SCREEN.json ...`` prints them.  The rule is counted as acting where the state test sets a candidate aside that
+the test without the response keeps.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_diagnose_testbench.py --kept-with-count motion_line_gate \\
+        --only ONLY.txt --lane 0/2 --json G0.json
+    python benchmarks/probe_motion_line_linear_response.py --keys G0.json G1.json > kg.txt
+    OPENBLAS_NUM_THREADS=1 python benchmarks/probe_motion_line_linear_response.py OUT.json $(cat kg.txt)
+    python benchmarks/probe_motion_line_linear_response.py --against-off-rows A.json B.json  # the docs' table
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from probe_held_back_rival import against_off, against_off_cli, against_off_row  # noqa: E402,F401
+from probe_position_friction_halves import row_class  # noqa: E402,F401
+from probe_runner import probe_main, run_rule_probe, screen_keys_cli  # noqa: E402
+
+from drake_est.diagnose import competition as _comp  # noqa: E402
+from drake_est.diagnose import core as _core  # noqa: E402
+
+RULE = "MOTION_LINE_LINEAR_RESPONSE_RULE"
+FUNC = "motion_line_state_test"
+#: the screen's count
+COUNT = "motion_line_gate"
+
+
+def keys_cli(argv) -> None:
+    """``--keys SCREEN.json ... [--family=F]``: the logs the ``motion_line_gate`` screens list."""
+    screen_keys_cli(argv, COUNT)
+
+
+def _record(got, a, kw):
+    """The record of one state test the rule turned (None otherwise): with the response offered the candidate is
+    explained (``got`` not significant), without it the same call keeps it."""
+    prep, model, fit, ext, alpha, min_gain, state = a[:7]
+    solve = a[7] if len(a) > 7 else kw.get("solve")
+    if got.get("significant") or not _core.MOTION_LINE_LINEAR_RESPONSE_RULE:
+        return None
+    N = _comp.state_nuisance(prep, model, ext.joint, solve=solve)
+    off = _comp.survives_state_law(prep, model, fit, ext, alpha, min_gain, nuisance=N, solve=solve)
+    if not off["significant"]:
+        return None
+    return {"joint": int(ext.joint), "frequency_hz": float(ext.evidence["frequency_hz"]),
+            "at_motion_line_hz": float(ext.evidence["at_motion_line_hz"]),
+            "rmse_reduction_given_state": float(off["rmse_reduction"]),
+            "rmse_reduction_given_state_and_response": float(got["rmse_reduction"]),
+            "model": [x.effect for x in model.exts]}
+
+
+def run(out_path: str, keys, family: str = "loop") -> dict:
+    """Diagnose the kept logs ``keys`` of ``family`` with the rule on; where it turned a state test, store the rows
+    and the rows of the same logs with the rule off."""
+    return run_rule_probe(out_path, keys, family, rule=RULE, func=FUNC, record=_record, hits_key="set_aside",
+                          row_class=row_class, compare_off=True)
+
+
+def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not against_off_cli(argv):
+        probe_main(argv, __doc__, keys_cli, run)
+
+
+if __name__ == "__main__":
+    main()
