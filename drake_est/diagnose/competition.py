@@ -628,7 +628,7 @@ def reversal_columns(jd):
 
 
 def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, without=(), chosen=None, rows=None,
-                   extra=None):
+                   extra=None, after=None):
     """Columns (at the joint's used rows) of a free function of the state of joint ``j`` that predicts its held-out
     residual: the blocks of :func:`state_blocks` joined one at a time, each time the one that lowers the held-out
     error of the model most (fitted on the training rows), while one does.  Blocks that overlap (the kernels times
@@ -640,7 +640,8 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, wit
     names of blocks left out; ``chosen``: a list the names of the blocks joined are appended to, in their order;
     ``rows`` = (fit rows, compared rows), boolean over the used rows, instead of the joint's training and held-out
     rows (as in :func:`_partial_test`); ``extra``: more blocks by name (e.g. :func:`filter_slope_columns`), offered
-    after those of :func:`state_blocks`."""
+    after those of :func:`state_blocks`; ``after``: blocks by name offered the same way only once the others' choice
+    is done, so that the columns chosen without them are all kept (the function's span only grows)."""
     solve = solve or _lstsq
     from drake_est.diagnose.nominal import nominal_names
     n0 = len(nominal_names(prep.robot_kind))
@@ -651,24 +652,25 @@ def state_nuisance(prep, model, j, kernels: int = STATE_KERNELS, solve=None, wit
         raise ValueError(f"state_nuisance: no state block named {', '.join(unknown)} "
                          f"(the blocks: {', '.join(STATE_BLOCK_NAMES)})")
     blocks = {k: B for k, B in state_blocks(prep, j, kernels).items() if k not in without}
-    clash = sorted(set(extra or {}) & set(blocks))
+    clash = sorted((set(extra or {}) | set(after or {})) & set(blocks))
     if clash:
         raise ValueError(f"state_nuisance: extra block {', '.join(clash)} is already a state block")
     blocks.update(extra or {})
     train, val = (jd.train, jd.val) if rows is None else rows
     best, _ = _fit_rss(X, jd.y, train, val, n0, solve)
     cols = []
-    while blocks:
-        # the blocks' trials at once (parallel.pmap), in the blocks' order
-        trial = dict(zip(blocks, pmap(lambda B: _fit_rss(np.hstack([X] + cols + [B]), jd.y, train, val, n0,
-                                                         solve)[0], list(blocks.values()))))
-        k = min(trial, key=trial.get)
-        if not trial[k] < best:
-            break
-        best = trial[k]
-        cols.append(blocks.pop(k))
-        if chosen is not None:
-            chosen.append(k)
+    for offered in (blocks, dict(after or {})):
+        while offered:
+            # the blocks' trials at once (parallel.pmap), in the blocks' order
+            trial = dict(zip(offered, pmap(lambda B: _fit_rss(np.hstack([X] + cols + [B]), jd.y, train, val, n0,
+                                                              solve)[0], list(offered.values()))))
+            k = min(trial, key=trial.get)
+            if not trial[k] < best:
+                break
+            best = trial[k]
+            cols.append(offered.pop(k))
+            if chosen is not None:
+                chosen.append(k)
     return np.hstack(cols) if cols else np.zeros((X.shape[0], 0))
 
 

@@ -1548,8 +1548,9 @@ MOTION_LINE_LINEAR_RESPONSE_RULE = False
 
 def motion_line_state_extra(prep, j) -> dict | None:
     """With :data:`MOTION_LINE_LINEAR_RESPONSE_RULE`: the block ``linear_response`` (:func:`linear_response_nuisance`)
-    offered, after the blocks of :func:`~drake_est.diagnose.competition.state_blocks`, to the free function of joint
-    ``j``'s state that a time-periodic candidate at a line of the motion must beat; None without the rule.  A misfit
+    offered, once the blocks of :func:`~drake_est.diagnose.competition.state_blocks` are chosen (``after``: the
+    function keeps them all, so the rule can only take from a candidate's gain), to the free function of joint ``j``'s
+    state that a time-periodic candidate at a line of the motion must beat; None without the rule.  A misfit
     that follows the motion is periodic at the motion's lines whether it is a function of the instantaneous state or a
     filter of the motion: an elastic gear's resonance adds a torque that is a linear response to the acceleration
     (fresh loop spec 44020: a resonance at 100 Hz on multisine moves over 300 s, named a disturbance at 0.149 Hz on the
@@ -1563,10 +1564,11 @@ def motion_line_state_extra(prep, j) -> dict | None:
 def motion_line_state_test(prep, model, fit, ext, alpha, min_gain, state, solve=None) -> dict:
     """The state test of a time-periodic candidate ``ext`` at a line of the motion
     (:func:`~drake_est.diagnose.competition.survives_state_law`) given the free function of its joint's state, offered
-    :func:`motion_line_state_extra` too; ``state`` caches that function's columns by joint for one round."""
+    :func:`motion_line_state_extra` after its own blocks; ``state`` caches that function's columns by joint for one
+    round."""
     if ext.joint not in state:
         state[ext.joint] = comp.state_nuisance(prep, model, ext.joint, solve=solve,
-                                               extra=motion_line_state_extra(prep, ext.joint))
+                                               after=motion_line_state_extra(prep, ext.joint))
     return comp.survives_state_law(prep, model, fit, ext, alpha, min_gain, nuisance=state[ext.joint], solve=solve)
 
 
