@@ -81,9 +81,10 @@ def test_not_kept_and_its_tables_are_its_jsons():
     # every kept row with an acceleration entry of the code it ran was examined (fresh blocks from 29300 on ran later)
     # rows refolded since may have left the screen: 14443 and 25531 (the ninetieth round), 6346 (the ninety-fifth:
     # its `unexplained` verdict no longer lists `acceleration`), those of the ninety-sixth (REFOLDED_ROUND_96) and of
-    # the hundredth (REFOLDED_ROUND_100: 16004's verdict lists the jerk-snap filter only)
-    from conftest import REFOLDED_ROUND_96, REFOLDED_ROUND_100
-    refolded = {14443, 25531, 6346} | REFOLDED_ROUND_96 | REFOLDED_ROUND_100
+    # the hundredth (REFOLDED_ROUND_100: 16004's verdict lists the jerk-snap filter only) and of the hundred-and-sixth
+    # (REFOLDED_ROUND_106: 18768's verdict lists the time correlation only)
+    from conftest import REFOLDED_ROUND_96, REFOLDED_ROUND_100, REFOLDED_ROUND_106
+    refolded = {14443, 25531, 6346} | REFOLDED_ROUND_96 | REFOLDED_ROUND_100 | REFOLDED_ROUND_106
     assert examined["loop"] - refolded == {k for k in probe.touchable_keys("loop") if k < 29300} - refolded
     assert len(examined["loop"]) == 974
     assert examined["testbench"] == set(probe.touchable_keys("testbench"))

@@ -1543,7 +1543,7 @@ def _evaluate(prep, model, fit, sigma, ext, alpha, min_gain, state, retry=True) 
 #: hundred-and-sixth round: the free function of the state that a time-periodic candidate at a line of the motion must
 #: beat (:func:`_evaluate`) is also offered a free linear response to the joint's acceleration
 #: (:func:`motion_line_state_extra`); rule: ``benchmarks/results/diagnose_motion_line_linear_response_round106_rule.txt``
-MOTION_LINE_LINEAR_RESPONSE_RULE = False
+MOTION_LINE_LINEAR_RESPONSE_RULE = True
 
 
 def motion_line_state_extra(prep, j) -> dict | None:
