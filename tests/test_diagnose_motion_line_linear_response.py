@@ -232,6 +232,10 @@ def test_kept_and_its_table_is_its_jsons():
     assert screen["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 44200 <= k < 44400]
     assert len(screen["keys_screened"]) == 199 and screen["refused"] == []
     assert keys[3] == [k for k, _ in screen["touched"]] == [44367]
+    # the fresh blocks since, each screened with the rule off (screen b: 44400-44599, none gated, no lane)
+    screen_b = json.loads((root / f"{pre}_screen_b.json").read_text())
+    assert screen_b["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 44400 <= k < 44600]
+    assert len(screen_b["keys_screened"]) == 199 and screen_b["touched"] == screen_b["refused"] == []
     assert [t["k"] for _, d in files for t in d["touched"]] == [44020, 18456, 18768, 21591, 2342]
     for _, d in files:
         for t in d["touched"]:
