@@ -211,7 +211,7 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_motion_line_linear_response")
     pre = "diagnose_motion_line_linear_response_round106"
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
-    doc, files, examined, s = probe_lanes(probe, f"{pre}_lane_*.json", lanes="abcde")
+    doc, files, examined, s = probe_lanes(probe, f"{pre}_lane_*.json", lanes="abcdef")
     keys = [d["keys_examined"] for _, d in files]
     only = {x: [tuple(line.split()) for line in (root / f"{pre}_only_{x}.txt").read_text().splitlines()]
             for x in ("involved", "control")}
@@ -239,6 +239,9 @@ def test_kept_and_its_table_is_its_jsons():
     screen_c = json.loads((root / f"{pre}_screen_c.json").read_text())
     assert screen_c["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 44600 <= k < 44800]
     assert len(screen_c["keys_screened"]) == 200 and [k for k, _ in screen_c["touched"]] == [44609, 44697] == keys[4]
+    screen_d = json.loads((root / f"{pre}_screen_d.json").read_text())
+    assert screen_d["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 44800 <= k < 45000]
+    assert len(screen_d["keys_screened"]) == 200 and [k for k, _ in screen_d["touched"]] == [44824] == keys[5]
     assert [t["k"] for _, d in files for t in d["touched"]] == [44020, 18456, 18768, 21591, 2342]
     for _, d in files:
         for t in d["touched"]:
@@ -251,4 +254,4 @@ def test_kept_and_its_table_is_its_jsons():
     _, _, differences = probe_results(f"{pre}_lane_*.json")
     for f, d in files:
         assert differences(d) == [], f.name
-    assert "The rule acted in five logs of 13 (15 with lane e's two, where it did not act)." in " ".join(doc.split())
+    assert "The rule acted in five logs of 13 (16 with lane e's two and lane f's one, where it did not act)." in " ".join(doc.split())
