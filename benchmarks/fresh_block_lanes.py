@@ -195,6 +195,10 @@ def run(lines, workers: int = 2) -> list:
         return [b for got in ex.map(queue, [lines[i::workers] for i in range(workers)]) for b in got]
 
 
+#: a fresh block's size: bench_diagnose_testbench.py --start N --n-loop 100
+BLOCK = 100
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--start", type=int, required=True, help="first spec of the fresh block(s)")
@@ -204,6 +208,11 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.end <= a.start:
         print(f"fresh_block_lanes: --end ({a.end}) must lie after --start ({a.start})", file=sys.stderr)
+        return 2
+    if a.start % BLOCK or a.end % BLOCK:
+        # fresh blocks are runs of BLOCK specs; --end is one past the last spec (an --end of 44999 left spec 44999 out)
+        print(f"fresh_block_lanes: --start ({a.start}) and --end ({a.end}, one past the last spec) must be multiples of "
+              f"{BLOCK}, the fresh blocks' size (did you mean --end {-(-a.end // BLOCK) * BLOCK}?)", file=sys.stderr)
         return 2
     plan = block_plan(a.start, a.end)
     for it in plan:

@@ -23,6 +23,10 @@ def test_bad_range_is_a_one_line_error(capsys):
     fb = bench_module("fresh_block_lanes")
     assert fb.main(["--start", "41400", "--end", "41400"]) == 2
     assert "--end (41400) must lie after --start (41400)" in capsys.readouterr().err
+    # --end is one past the last spec: a range that does not end at a block's edge would leave specs out
+    assert fb.main(["--start", "44800", "--end", "44999"]) == 2
+    err = capsys.readouterr().err
+    assert "must be multiples of 100" in err and "did you mean --end 45000?" in err and len(err.strip().splitlines()) == 1
 
 
 def _keys(name, key):
