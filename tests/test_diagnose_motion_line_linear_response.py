@@ -242,6 +242,9 @@ def test_kept_and_its_table_is_its_jsons():
     screen_d = json.loads((root / f"{pre}_screen_d.json").read_text())
     assert screen_d["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 44800 <= k < 45000]
     assert len(screen_d["keys_screened"]) == 200 and [k for k, _ in screen_d["touched"]] == [44824] == keys[5]
+    screen_e = json.loads((root / f"{pre}_screen_e.json").read_text())
+    assert screen_e["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 45000 <= k < 45200]
+    assert len(screen_e["keys_screened"]) == 199 and screen_e["touched"] == screen_e["refused"] == []
     assert [t["k"] for _, d in files for t in d["touched"]] == [44020, 18456, 18768, 21591, 2342]
     for _, d in files:
         for t in d["touched"]:
