@@ -211,7 +211,7 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_motion_line_linear_response")
     pre = "diagnose_motion_line_linear_response_round106"
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
-    doc, files, examined, s = probe_lanes(probe, f"{pre}_lane_*.json", lanes="abcdefghi")
+    doc, files, examined, s = probe_lanes(probe, f"{pre}_lane_*.json", lanes="abcdefghij")
     keys = [d["keys_examined"] for _, d in files]
     only = {x: [tuple(line.split()) for line in (root / f"{pre}_only_{x}.txt").read_text().splitlines()]
             for x in ("involved", "control")}
@@ -248,6 +248,9 @@ def test_kept_and_its_table_is_its_jsons():
     screen_f = json.loads((root / f"{pre}_screen_f.json").read_text())
     assert screen_f["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 45200 <= k < 45400]
     assert len(screen_f["keys_screened"]) == 199 and [k for k, _ in screen_f["touched"]] == [45371] == keys[8]
+    screen_g = json.loads((root / f"{pre}_screen_g.json").read_text())
+    assert screen_g["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 45400 <= k < 45600]
+    assert len(screen_g["keys_screened"]) == 200 and [k for k, _ in screen_g["touched"]] == [45423] == keys[9]
     assert [t["k"] for _, d in files for t in d["touched"]] == [44020, 18456, 18768, 21591, 2342, 3046, 4190, 6294]
     # (d) the first share of the rows not screened in the round: the open-loop rows and the closed-loop rows below
     # 12000 outside the involved and control files, gated with the rule off; lanes g (closed-loop) and h (open-loop)
@@ -272,4 +275,4 @@ def test_kept_and_its_table_is_its_jsons():
     _, _, differences = probe_results(f"{pre}_lane_*.json")
     for f, d in files:
         assert differences(d) == [], f.name
-    assert "The rule acted in five logs of 13 (16 with lane e's two and lane f's one, where it did not act; eight of 62 with lanes g and h, where it changed no named effect; 63 with lane i's one, where it did not act)." in " ".join(doc.split())
+    assert "The rule acted in five logs of 13 (16 with lane e's two and lane f's one, where it did not act; eight of 62 with lanes g and h, where it changed no named effect; 64 with lane i's and lane j's, where it did not act)." in " ".join(doc.split())
