@@ -228,40 +228,28 @@ def test_kept_and_its_table_is_its_jsons():
     assert keys[0] == [44020] and keys[1] == [k for k in involved if k != 44020]
     assert keys[2] == probe.screened_keys([root / f"{pre}_gate_control.json"], "motion_line_gate") == \
         [2342, 10350, 17695, 35122, 35540]
-    screen = json.loads((root / f"{pre}_screen_a.json").read_text())
-    assert screen["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 44200 <= k < 44400]
-    assert len(screen["keys_screened"]) == 199 and screen["refused"] == []
-    assert keys[3] == [k for k, _ in screen["touched"]] == [44367]
-    # the fresh blocks since, each screened with the rule off (screen b: 44400-44599, none gated, no lane)
-    screen_b = json.loads((root / f"{pre}_screen_b.json").read_text())
-    assert screen_b["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 44400 <= k < 44600]
-    assert len(screen_b["keys_screened"]) == 199 and screen_b["touched"] == screen_b["refused"] == []
-    screen_c = json.loads((root / f"{pre}_screen_c.json").read_text())
-    assert screen_c["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 44600 <= k < 44800]
-    assert len(screen_c["keys_screened"]) == 200 and [k for k, _ in screen_c["touched"]] == [44609, 44697] == keys[4]
-    screen_d = json.loads((root / f"{pre}_screen_d.json").read_text())
-    assert screen_d["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 44800 <= k < 45000]
-    assert len(screen_d["keys_screened"]) == 200 and [k for k, _ in screen_d["touched"]] == [44824] == keys[5]
-    screen_e = json.loads((root / f"{pre}_screen_e.json").read_text())
-    assert screen_e["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 45000 <= k < 45200]
-    assert len(screen_e["keys_screened"]) == 199 and screen_e["touched"] == screen_e["refused"] == []
-    screen_f = json.loads((root / f"{pre}_screen_f.json").read_text())
-    assert screen_f["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 45200 <= k < 45400]
-    assert len(screen_f["keys_screened"]) == 199 and [k for k, _ in screen_f["touched"]] == [45371] == keys[8]
-    screen_g = json.loads((root / f"{pre}_screen_g.json").read_text())
-    assert screen_g["keys_screened"] == [k for k in probe.kept_keys("loop", lambda r: True) if 45400 <= k < 45600]
-    assert len(screen_g["keys_screened"]) == 200 and [k for k, _ in screen_g["touched"]] == [45423] == keys[9]
+    every_loop = probe.kept_keys("loop", lambda r: True)
+    # screen a (44200-44399, lane d) and the fresh blocks since, each screened with the rule off: (screen, first spec,
+    # logs, gated, the lane that diagnosed them or None)
+    for x, start, n, gated, lane in (("a", 44200, 199, [44367], 3), ("b", 44400, 199, [], None),
+                                     ("c", 44600, 200, [44609, 44697], 4), ("d", 44800, 200, [44824], 5),
+                                     ("e", 45000, 199, [], None), ("f", 45200, 199, [45371], 8),
+                                     ("g", 45400, 200, [45423], 9)):
+        screen = json.loads((root / f"{pre}_screen_{x}.json").read_text())
+        assert screen["keys_screened"] == [k for k in every_loop if start <= k < start + 200], x
+        assert len(screen["keys_screened"]) == n and [k for k, _ in screen["touched"]] == gated, x
+        assert screen["refused"] == [] and (lane is None or keys[lane] == gated), x
     assert [t["k"] for _, d in files for t in d["touched"]] == [44020, 18456, 18768, 21591, 2342, 3046, 4190, 6294]
     # (d) the first share of the rows not screened in the round: the open-loop rows and the closed-loop rows below
     # 12000 outside the involved and control files, gated with the rule off; lanes g (closed-loop) and h (open-loop)
     only["rest_a"] = [tuple(line.split()) for line in (root / f"{pre}_only_rest_a.txt").read_text().splitlines()]
     assert len(only["rest_a"]) == 10465 and not set(only["rest_a"]) & (set(only["involved"]) | set(only["control"]))
-    every = {("loop", str(k)) for k in probe.kept_keys("loop", lambda r: True) if k < 12000} | {
+    every = {("loop", str(k)) for k in every_loop if k < 12000} | {
         ("testbench", str(k)) for k in probe.kept_keys("testbench", lambda r: True)}
     assert set(only["rest_a"]) == every - set(only["involved"]) - set(only["control"])
-    rest = [json.loads((root / f"{pre}_gate_rest_a_{i}.json").read_text()) for i in "01"]
-    assert sum(g["logs"] for g in rest) == 10465 and all(g["refused"] == [] for g in rest)
     rest_files = [root / f"{pre}_gate_rest_a_{i}.json" for i in "01"]
+    rest = [json.loads(f.read_text()) for f in rest_files]
+    assert sum(g["logs"] for g in rest) == 10465 and all(g["refused"] == [] for g in rest)
     assert keys[6] == probe.screened_keys(rest_files, "motion_line_gate") and len(keys[6]) == 45
     assert keys[7] == probe.screened_keys(rest_files, "motion_line_gate", "testbench") == [136]
     for _, d in files:
