@@ -548,6 +548,14 @@ def kept_logs_with_count(count: str, lane: str | None = None, sample_rate: float
                 with single_thread_blas():
                     got.update({str(j): 1 for j in motion_line_gate(prep)})
                 continue
+            if count == "energy_fixed_point_gate":
+                # the joints whose first-round energy candidate still moves the friction power after Algorithm 6's
+                # fixed passes (core.energy_fixed_point_gate: where the hundred-and-eighth round's passes act first)
+                from drake_est.diagnose.core import energy_fixed_point_gate
+                from drake_est.threads import single_thread_blas
+                with single_thread_blas():
+                    got.update({str(j): round(m, 4) for j, m in energy_fixed_point_gate(prep).items()})
+                continue
             if count == "unsupported_kernels":
                 # the joints where a number of position kernels beyond the smallest has a kernel the training
                 # positions hardly weigh (detectors.supported_sizes; the eighty-third round's rule drops those sizes)
