@@ -7,8 +7,10 @@ selects those rows from the kept JSONs.  When a fresh block is folded in (``benc
 (a cheap pass that lists the few rows worth a lane; its lane then runs on the listed keys).  This script reads each
 probe's own ``--keys`` selection, keeps the keys in ``[--start, --end)``, names the next lane or screen of each round
 (letters after the last JSON of that kind: ``y``, ``z``, ``za``, ..., ``zz``, ``zza``) and prints the commands, or runs
-them (``--run``: two worker queues, screens first, then the lanes on what the screens listed).  What it cannot do is
-the docs and the tests that read the lanes: those follow each round's section in ``docs/readme/diagnose_testbench.md``.
+them (``--run``: two worker queues, screens first, then the lanes on what the screens listed).  The docs and the
+tests that read the lanes follow each round's section in ``docs/readme/diagnose_testbench.md``:
+``fresh_block_lane_docs.py`` writes the routine ones from the plan (``--json``) and the JSONs, and stops where a
+reading must be written by hand.
 
     python benchmarks/fresh_block_lanes.py --start 41400 --end 41600             # the keys and commands
     python benchmarks/fresh_block_lanes.py --start 41400 --end 41600 --json k.json  # the keys per round, as JSON
