@@ -51,6 +51,7 @@ class Round(NamedTuple):
 
 #: the kept rounds with a probe for fresh blocks, newest first (the order the docs keep their sections in)
 ROUNDS = (
+    Round(108, "probe_change_beside_drift.py", "touchable", "diagnose_change_beside_drift_round108"),
     Round(106, "probe_motion_line_linear_response.py", "all", "diagnose_motion_line_linear_response_round106",
           screens=1, note="its screen takes the gate of every log of the block"),
     Round(105, "probe_time_law_beside_stribeck_both_ways.py", "touchable",

@@ -178,6 +178,9 @@ REFOLDED_ROUND_105 = refolded_rows("diagnose_time_law_beside_stribeck_both_ways_
 #: missed position friction now named) and 18768 (the same finding, fewer entries set aside and `unexplained`), which
 #: earlier rounds' lanes and screens saw as they were
 REFOLDED_ROUND_106 = refolded_rows("diagnose_motion_line_linear_response_round106_lane_*.json")
+#: the keys whose kept rows the hundred-and-eighth round folded: 45767 (mended: its abrupt change set aside, the drift
+#: alone), which earlier rounds' lanes and screens saw as it was
+REFOLDED_ROUND_108 = refolded_rows("diagnose_change_beside_drift_round108_lane_*.json")
 
 
 def probe_results(pattern: str):

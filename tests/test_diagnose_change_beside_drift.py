@@ -97,3 +97,38 @@ def test_spec_45767_sets_the_change_aside(design_case):
     assert change[0]["drift_at_fixed_point"]["w_moved_after_two_passes"] > det.ENERGY_FIXED_POINT_TOL
     assert [hit[0].effect for hit in seen] == ["abrupt_change"]
     assert not [x for x in off["set_aside"] if x.get("drift_at_fixed_point")]
+
+
+def test_kept_and_its_table_is_its_jsons():
+    """Kept: the switch is on; lanes a and b examined the 850 touchable closed-loop rows (alternate keys, as drawn
+    before 45767's fold), lane c 100 control rows, lane d the 21 touchable open-loop rows; the rule acted in 45767
+    only (its change set aside); no row gained a wrong name, a finding on a null log or lost `unexplained` or an
+    outright name, wrong + missed did not rise, every rule-on row is its log's kept row (45767's folded), and the docs'
+    table holds each lane's row as --against-off-rows prints it."""
+    from conftest import REFOLDED_ROUND_108, bench_module, probe_lanes, probe_results
+    assert core.CHANGE_BESIDE_DRIFT_AT_FIXED_POINT_RULE is True
+    probe = bench_module("probe_change_beside_drift")
+    doc, files, examined, s = probe_lanes(probe, "diagnose_change_beside_drift_round108_lane_*.json", lanes="abcd")
+    keys = [d["keys_examined"] for _, d in files]
+    assert REFOLDED_ROUND_108 == {45767}
+    assert len(keys[0]) == len(keys[1]) == 425 and not set(keys[0]) & set(keys[1])
+    assert sorted(keys[0] + keys[1])[:3] == [6, 7, 10] and 45767 in keys[1]
+    touchable = probe.kept_keys("loop", probe.touchable)
+    assert set(touchable) - REFOLDED_ROUND_108 <= set(keys[0] + keys[1])
+    kept = {k: r for (f, _, k), (_, r) in bench_module("bench_diagnose_testbench").kept_rows_naming("any").items()
+            if f == "loop"}
+    assert len(keys[2]) == probe.CONTROL_ROWS and keys[2] == sorted(set(keys[2]))
+    assert all(probe.control(kept[k]) for k in keys[2]) and not set(keys[2]) & set(keys[0] + keys[1])
+    assert keys[3] == probe.kept_keys("testbench", probe.touchable) and len(keys[3]) == 21
+    assert [t["k"] for _, d in files for t in d["touched"]] == [45767]
+    assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == s["outright_lost"] == []
+    assert s["wrong_lost"] == [45767] and s["missed_on"] <= s["missed_off"]
+    for _, d in files:
+        for t in d["touched"]:
+            for x in t["set_aside"]:
+                assert x["effect"] == "abrupt_change" and x["fixed_point_passes"] > 2
+                assert x["w_moved_after_two_passes"] > det.ENERGY_FIXED_POINT_TOL
+    _, _, differences = probe_results("diagnose_change_beside_drift_round108_lane_*.json")
+    for f, d in files:
+        assert differences(d) == [], f.name
+    assert "The rule acted in one log of 971." in " ".join(doc.split())

@@ -1596,7 +1596,7 @@ def motion_line_gate(prep, alpha: float = ALPHA, min_gain: float = MIN_GAIN) -> 
 
 #: hundred-and-eighth round: an abrupt change that the final model names beside an energy drift of its joint must stay
 #: significant given the drift refitted to Algorithm 6's fixed point (:func:`change_beside_drift_at_fixed_point`)
-CHANGE_BESIDE_DRIFT_AT_FIXED_POINT_RULE = False
+CHANGE_BESIDE_DRIFT_AT_FIXED_POINT_RULE = True
 
 
 def _train_error_fn(model, jd):
