@@ -236,14 +236,27 @@ def lane_round(r):
     keys = it["keys"]
     name, count_fmt = LANE_ROUNDS[r]
     if not keys:
-        raise SystemExit(f"{r}: no keys in this block: write the 'have none' by hand")
+        # "The fresh blocks A-B have none." after the round's last lane sentence, or that sentence's range extended
+        pL = FL.letters(pre, "lane")[-1]
+        a, b = section_bounds(f"{pre}_lane_{pL}.json")
+        m = re.search(rf"Lane {pL}, run with \w+(?: \([^)]*\))?: the [^;]*; it (?:acted in none|acted in neither|did not act)\."
+                      rf"(?: The fresh blocks (\d+)-(\d+) have none\.)?", doc[a:b])
+        if m is None:
+            raise SystemExit(f"{r}: no keys in this block, and its last lane sentence (lane {pL}) is not found")
+        if m.group(2) is not None and int(m.group(2)) == A - 1:
+            new_text = m.group(0).replace(f"{m.group(1)}-{m.group(2)} have none", f"{m.group(1)}-{E - 1} have none")
+        else:
+            new_text = m.group(0) + f" The fresh blocks {RNG} have none."
+        doc_rsub_in(f"{pre}_lane_{pL}.json", re.escape(m.group(0)), lambda _: new_text, f"{r} none")
+        log.append(f"{r} none")
+        return
     L = it["lane"]
     pL = prev_letter(pre, "lane", L)
     row, nl, _ = check_quiet(script, pre, L, str(r))
     d = load(f"{pre}_lane_{L}.json")
     assert d["keys_examined"] == keys and nl == len(keys), (r, d["keys_examined"], keys)
     new = f"Lane {L}, run with {SHA}: the {cnt(len(keys))} of {RNG} ({join(keys)}); {acted(len(keys))}."
-    doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+: the [^;]*; it (?:acted in none|acted in neither|did not act)\.(?: The fresh blocks \d+-\d+ have none\.)?)",
+    doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+(?: \([^)]*\))?: the [^;]*; it (?:acted in none|acted in neither|did not act)\.(?: The fresh blocks \d+-\d+ have none\.)?)",
              lambda m: m.group(1) + " " + new, f"{r} prose")
     insert_line_after(lambda l: f"{pre}_lane_{pL}.json " in l and l.startswith("OPENBLAS"),
                       [f"OPENBLAS_NUM_THREADS=1 python benchmarks/{script} benchmarks/results/{pre}_lane_{L}.json {' '.join(map(str, keys))}"],
@@ -260,8 +273,8 @@ def lane_round(r):
     tsub(name, f'lanes="{lanes[:-1]}"', f'lanes="{lanes}"')
     # keys line: after the last "assert keys[i] == [k for k in touchable if ..."
     t = tests[name]
-    ms = list(re.finditer(r"\n(    assert keys\[(\d+)\] == \[k for k in touchable if \d+ <= k < \d+\] == \[[\d, ]*\][^\n]*)", t))
-    last = ms[-1]
+    ms = list(re.finditer(r"\n(    assert keys\[(\d+)\] == [^\n]*)", t))
+    last = max(ms, key=lambda m: int(m.group(2)))
     i = int(last.group(2)) + 1
     assert i == len(lanes) - 1, (r, i, lanes)
     line = f"\n    assert keys[{i}] == [k for k in touchable if {A} <= k < {E}] == {keys}"
@@ -505,7 +518,7 @@ def r90():
     keys = it["keys"]
     if not keys:
         pL = FL.letters(pre, "lane")[-1]
-        doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+: [\d, and]+, the \w+ of \d+-\d+ \([^)]*\)\.)",
+        doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+(?: \([^)]*\))?: [\d, and]+, [^.]*?\((?:it did not act|it acted in neither|it acted in none)\)\.)",
                  lambda m: m.group(1) + f" The fresh blocks {RNG} have none.", "90 none")
         log.append("90 none")
         return
@@ -516,7 +529,7 @@ def r90():
         new = f" Lane {L}, run with {SHA}: {keys[0]}, the one of {RNG} (it did not act)."
     else:
         new = f" Lane {L}, run with {SHA}: {join(keys)}, the {len(keys)} of {RNG} ({acted(len(keys))})."
-    doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+: [\d, and]+, the \w+ of \d+-\d+ \([^)]*\)\.(?: The fresh blocks \d+-\d+ have none\.)?)",
+    doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+(?: \([^)]*\))?: [\d, and]+, [^.]*?\((?:it did not act|it acted in neither|it acted in none)\)\.(?: The fresh blocks \d+-\d+ have none\.)?)",
              lambda m: m.group(1) + new, "90 prose")
     insert_line_after(lambda l: f"{pre}_lane_{pL}.json " in l and l.startswith("OPENBLAS"),
                       [f"OPENBLAS_NUM_THREADS=1 python benchmarks/{script} benchmarks/results/{pre}_lane_{L}.json {' '.join(map(str, keys))}"], "90 cmd")
@@ -600,7 +613,7 @@ def r74():
     row, nl, _ = check_quiet(script, pre, L, "74")
     rows_word = "row" if len(keys) == 1 else "rows"
     new = f"Lane {L}, run with {SHA}: the {cnt(len(keys))} such {rows_word} of the fresh blocks {RNG} ({join(keys)}). "
-    doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+: the \w+ such rows? of the fresh blocks \d+-\d+ \([^)]*\)\. )", lambda m: m.group(1) + new, "74 prose")
+    doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+(?: \([^)]*\))?: the \w+ such rows? [^.]*\([\d, and]+\)\. )", lambda m: m.group(1) + new, "74 prose")
     table_row_after(pre, pL, row, "74 table")
     m = re.search(r"The rule fired in 2 of all (\d+) such kept rows", doc)
     old = int(m.group(1))
@@ -609,7 +622,7 @@ def r74():
     tsub(name, f"every one of the {old} touchable", f"every one of the {old + len(keys)} touchable")
     tsub(name, f"assert len(examined) == {old} and", f"assert len(examined) == {old + len(keys)} and")
     trsub(name, r"assert len\(files\) == (\d+)\n", lambda m: f"assert len(files) == {int(m.group(1)) + 1}\n")
-    trsub(name, r"(, \w+: \d+-\d+)\n(    assert len\(files\))", lambda m: m.group(1) + f", {L}: {RNG}\n" + m.group(2))
+    trsub(name, r"(, \w+: [^\n]*)\n(    assert len\(files\))", lambda m: m.group(1) + f", {L}: {RNG}\n" + m.group(2))
     log.append(f"74 lane {L} ({keys})")
 
 
