@@ -56,13 +56,18 @@ def design_case():
 
 
 def test_spec_33077_keeps_the_level_ambiguous_with_the_closed_load(design_case):
-    """Off: the load set aside for the level, then the level for the closed load, and an abrupt change named (a wrong
-    name). On: the level stays, reported ambiguous with the load it had put aside, beside the Stribeck law."""
+    """Off: the load set aside for the level, then the level for the closed load, and the report is wrong: on the
+    Intel Xeon that ran the round an abrupt change is named (a wrong name); on an AMD EPYC (the hundred-and-eighth
+    round's session; the last digits of this path differ) the search ends at a position friction ambiguous with a
+    drift and Stribeck, the level missed.  On: the level stays, reported ambiguous with the load it had put aside,
+    beside the Stribeck law, on both."""
     mod, spec, truth, off, on, _ = design_case
     assert sorted(truth["planted"]) == ["asymmetric_coulomb", "stribeck"]
     assert [x["effect"] for x in off["set_aside"]][:2] == ["position_dependent_load", "asymmetric_coulomb"]
     assert off["set_aside"][1]["better"] == "position_dependent_load"
-    assert mod.judge(spec, off)["wrong"] == ["abrupt_change"]
+    j_off = mod.judge(spec, off)
+    assert not j_off["correct"]
+    assert (j_off["wrong"], j_off["missed"]) in ((["abrupt_change"], []), ([], ["asymmetric_coulomb"]))
     assert [x["effect"] for x in on["set_aside"]] == ["position_dependent_load"]
     j = mod.judge(spec, on)
     assert j["correct"] and not j["wrong"] and not j["missed"]
