@@ -172,6 +172,42 @@ def check_quiet(script, prefix, L, what, allow_fired=False):
 
 P = {it["round"]: it for it in PLAN}
 
+def _quiet_lane(r):
+    """(pre, script, keys, L, pL, row) of round ``r``'s lane for the block, which must have keys and not have acted."""
+    it = P[r]
+    pre, script, keys = it["prefix"], it["script"], it["keys"]
+    if not keys:
+        raise SystemExit(f"{r}: no keys in this block: by hand")
+    L = it["lane"]
+    pL = prev_letter(pre, "lane", L)
+    row, nl, _ = check_quiet(script, pre, L, str(r))
+    assert nl == len(keys), (r, nl, keys)
+    return pre, script, keys, L, pL, row
+
+
+def _lane_cmd_and_row(pre, script, pL, L, keys, row, what, cmd=True):
+    """the lane's command line after the previous lane's, and its table row after the previous lane's"""
+    if cmd:
+        insert_line_after(lambda l: f"{pre}_lane_{pL}.json " in l and l.startswith("OPENBLAS"),
+                          [f"OPENBLAS_NUM_THREADS=1 python benchmarks/{script} benchmarks/results/{pre}_lane_{L}.json "
+                           f"{' '.join(map(str, keys))}"], f"{what} cmd")
+    table_row_after(pre, pL, row, f"{what} table")
+
+
+def _bump(fmt, add, what, test=None, test_fmt=None):
+    """the count in the doc's ``fmt`` (one ``{}``, thousands with commas) raised by ``add``, and the same in ``test``
+    (its ``test_fmt``, default ``fmt``); the old count"""
+    m = re.search(re.escape(fmt).replace(r"\{\}", r"([\d,]+)"), doc)
+    if m is None:
+        raise SystemExit(f"{what}: no {fmt!r}")
+    old = int(m.group(1).replace(",", ""))
+    doc_sub(fmt.format(fmt_int(old)), fmt.format(fmt_int(old + add)), what)
+    if test:
+        tf = test_fmt or fmt
+        tsub(test, tf.format(fmt_int(old)), tf.format(fmt_int(old + add)))
+    return old
+
+
 
 def keys_of(r):
     return P[r]["keys"]
@@ -558,28 +594,28 @@ def r90():
     pre, script = it["prefix"], it["script"]
     keys = it["keys"]
     if not keys:
+        # after the last lane's sentence: "The fresh blocks A-B have none." (a range ending just before the block
+        # extended)
         pL = FL.letters(pre, "lane")[-1]
-        doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+(?: \([^)]*\))?: [\d, and]+, [^.]*?\((?:it did not act|it acted in neither|it acted in none)\)\.)",
-                 lambda m: m.group(1) + f" The fresh blocks {RNG} have none.", "90 none")
+
+        def none(m):
+            if m.group(3) is not None and int(m.group(3)) == A - 1:
+                return m.group(1) + f" The fresh blocks {m.group(2)}-{E - 1} have none."
+            return m.group(0) + f" The fresh blocks {RNG} have none."
+        doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+(?: \([^)]*\))?: [\d, and]+, [^.]*?\((?:it did not act|it acted in neither|it acted in none)\)\.)(?: The fresh blocks (\d+)-(\d+) have none\.)?",
+                    none, "90 none")
         log.append("90 none")
         return
-    L = it["lane"]
-    pL = prev_letter(pre, "lane", L)
-    row, nl, _ = check_quiet(script, pre, L, "90")
+    pre, script, keys, L, pL, row = _quiet_lane(90)
     if len(keys) == 1:
         new = f" Lane {L}, run with {SHA}: {keys[0]}, the one of {RNG} (it did not act)."
     else:
         new = f" Lane {L}, run with {SHA}: {join(keys)}, the {len(keys)} of {RNG} ({acted(len(keys))})."
     doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+(?: \([^)]*\))?: [\d, and]+, [^.]*?\((?:it did not act|it acted in neither|it acted in none)\)\.(?: The fresh blocks \d+-\d+ have none\.)?)",
-             lambda m: m.group(1) + new, "90 prose")
-    insert_line_after(lambda l: f"{pre}_lane_{pL}.json " in l and l.startswith("OPENBLAS"),
-                      [f"OPENBLAS_NUM_THREADS=1 python benchmarks/{script} benchmarks/results/{pre}_lane_{L}.json {' '.join(map(str, keys))}"], "90 cmd")
-    table_row_after(pre, pL, row, "90 table")
-    m = re.search(r"It acted in 10 of (\d+) rows\.", doc)
-    old = int(m.group(1))
-    doc_sub(f"It acted in 10 of {old} rows.", f"It acted in 10 of {old + len(keys)} rows.", "90 count")
+                lambda m: m.group(1) + new, "90 prose")
+    _lane_cmd_and_row(pre, script, pL, L, keys, row, "90")
     name = "test_diagnose_closed_rival.py"
-    tsub(name, f"It acted in 10 of {old} rows", f"It acted in 10 of {old + len(keys)} rows")
+    _bump("It acted in 10 of {} rows.", len(keys), "90 count", name, "It acted in 10 of {} rows")
     tsub(name, f'"{pL}"])', f'"{pL}", "{L}"])') if f'"{pL}"])' in tests[T(name)] else tsub(name, 'wxyz"])', f'wxyz", "{L}"])')
     trsub(name, r"(assert \[len\(d\[\"keys_examined\"\]\) for _, d in files\] == \[56, 150,[\d, ]*?)\]\n",
           lambda m: m.group(1) + f", {len(keys)}]\n")
@@ -588,24 +624,12 @@ def r90():
 
 # ------------------------------------------------------------ round 89
 def r89():
-    it = P[89]
-    pre, script = it["prefix"], it["script"]
-    keys = it["keys"]
-    if not keys:
-        raise SystemExit("89: none: by hand")
-    L = it["lane"]
-    pL = prev_letter(pre, "lane", L)
-    row, nl, _ = check_quiet(script, pre, L, "89")
+    pre, script, keys, L, pL, row = _quiet_lane(89)
     doc_rsub(rf"(, run with \w+ \({pL}: [\d, and]+\))\. Each was diagnosed",
              lambda m: m.group(1) + f", and the {cnt(len(keys))} of the fresh blocks {RNG}, run with {SHA} ({L}: {join(keys)}). Each was diagnosed", "89 prose")
-    insert_line_after(lambda l: f"{pre}_lane_{pL}.json " in l and l.startswith("OPENBLAS"),
-                      [f"OPENBLAS_NUM_THREADS=1 python benchmarks/{script} benchmarks/results/{pre}_lane_{L}.json {' '.join(map(str, keys))}"], "89 cmd")
-    table_row_after(pre, pL, row, "89 table")
-    m = re.search(r"It fired in one log of ([\d,]+), the design log 30798", doc)
-    old = int(m.group(1).replace(",", ""))
-    doc_sub(f"It fired in one log of {fmt_int(old)}, the design log 30798", f"It fired in one log of {fmt_int(old + len(keys))}, the design log 30798", "89 count")
+    _lane_cmd_and_row(pre, script, pL, L, keys, row, "89")
     name = "test_diagnose_position_friction_dissipation.py"
-    tsub(name, f"It fired in one log of {fmt_int(old)}", f"It fired in one log of {fmt_int(old + len(keys))}")
+    _bump("It fired in one log of {}, the design log 30798", len(keys), "89 count", name, "It fired in one log of {}")
     trsub(name, r"(lane \w+ the \d+ of \d+-\d+); every\n", lambda m: m.group(1) + f", lane {L} the {len(keys)} of {RNG}; every\n")
     tsub(name, f'"{pL}"])\n', f'"{pL}", "{L}"])\n')
     trsub(name, r"(assert \[len\(d\[\"keys_examined\"\]\) for _, d in files\] == \[283, 282,[\d,\s]*?)\]\n",
@@ -615,24 +639,12 @@ def r89():
 
 # ------------------------------------------------------------ round 88
 def r88():
-    it = P[88]
-    pre, script = it["prefix"], it["script"]
-    keys = it["keys"]
-    if not keys:
-        raise SystemExit("88: none: by hand")
-    L = it["lane"]
-    pL = prev_letter(pre, "lane", L)
-    row, nl, _ = check_quiet(script, pre, L, "88")
+    pre, script, keys, L, pL, row = _quiet_lane(88)
     doc_rsub(rf"(, run with \w+ \({pL}\)); no open-loop row is touchable",
              lambda m: m.group(1) + f" and the {cnt(len(keys))} of the fresh blocks {RNG}, run with {SHA} ({L}); no open-loop row is touchable", "88 prose")
-    insert_line_after(lambda l: f"{pre}_lane_{pL}.json " in l and l.startswith("OPENBLAS"),
-                      [f"OPENBLAS_NUM_THREADS=1 python benchmarks/{script} benchmarks/results/{pre}_lane_{L}.json {' '.join(map(str, keys))}"], "88 cmd")
-    table_row_after(pre, pL, row, "88 table")
-    m = re.search(r"It fired in one log of ([\d,]+), the design log 31260", doc)
-    old = int(m.group(1).replace(",", ""))
-    doc_sub(f"It fired in one log of {fmt_int(old)}, the design log 31260", f"It fired in one log of {fmt_int(old + len(keys))}, the design log 31260", "88 count")
+    _lane_cmd_and_row(pre, script, pL, L, keys, row, "88")
     name = "test_diagnose_disturbance_stationary.py"
-    tsub(name, f"It fired in one log of {fmt_int(old)}", f"It fired in one log of {fmt_int(old + len(keys))}")
+    old = _bump("It fired in one log of {}, the design log 31260", len(keys), "88 count", name, "It fired in one log of {}")
     tsub(name, f'len(examined["loop"]) == {old} and', f'len(examined["loop"]) == {old + len(keys)} and')
     trsub(name, r"(lane \w+ the \d+ of \d+-\d+) \(all run with the rule on\)",
           lambda m: m.group(1) + f", lane {L} the {len(keys)} of {RNG} (all run with the rule on)")
@@ -644,22 +656,13 @@ def r88():
 
 # ------------------------------------------------------------ round 74
 def r74():
-    it = P[74]
-    pre, script = it["prefix"], it["script"]
-    keys = it["keys"]
-    if not keys:
-        raise SystemExit("74: none: by hand")
-    L = it["lane"]
-    pL = prev_letter(pre, "lane", L)
-    row, nl, _ = check_quiet(script, pre, L, "74")
+    pre, script, keys, L, pL, row = _quiet_lane(74)
     rows_word = "row" if len(keys) == 1 else "rows"
     new = f"Lane {L}, run with {SHA}: the {cnt(len(keys))} such {rows_word} of the fresh blocks {RNG} ({join(keys)}). "
     doc_rsub_in(f"{pre}_lane_{pL}.json", rf"(Lane {pL}, run with \w+(?: \([^)]*\))?: the \w+ such rows? [^.]*\([\d, and]+\)\. )", lambda m: m.group(1) + new, "74 prose")
-    table_row_after(pre, pL, row, "74 table")
-    m = re.search(r"The rule fired in 2 of all (\d+) such kept rows", doc)
-    old = int(m.group(1))
-    doc_sub(f"The rule fired in 2 of all {old} such kept rows", f"The rule fired in 2 of all {old + len(keys)} such kept rows", "74 count")
+    _lane_cmd_and_row(pre, script, pL, L, keys, row, "74", cmd=False)      # its lanes have no command lines
     name = "test_diagnose_position_law_as_accepted.py"
+    old = _bump("The rule fired in 2 of all {} such kept rows", len(keys), "74 count")
     tsub(name, f"every one of the {old} touchable", f"every one of the {old + len(keys)} touchable")
     tsub(name, f"assert len(examined) == {old} and", f"assert len(examined) == {old + len(keys)} and")
     trsub(name, r"assert len\(files\) == (\d+)\n", lambda m: f"assert len(files) == {int(m.group(1)) + 1}\n")
