@@ -338,6 +338,27 @@ def _inner_fits(model, jd, X=None) -> "InnerFits":
     return InnerFits(X, jd.y, jd.train & (block % 4 == 0), jd.train & (block % 4 == 2), model.nonneg(jd.joint))
 
 
+def _train_error_fn(model, jd, X=None):
+    """``fit_train(C)``: the training error of ``model`` (its design ``X`` for joint ``jd`` when already built) plus
+    columns C, and C's coefficients (the energy detector's variable projection)."""
+    X = model.design_with_shared(jd.joint) if X is None else X
+    train = InnerFits(X, jd.y, jd.train, None, model.nonneg(jd.joint))
+
+    def fit_train(C, train=train):
+        """Training error of the model plus columns C and C's coefficients."""
+        err, c = train.error(C)
+        return err, c[train.p:]
+    return fit_train
+
+
+def _nominal_friction(prep, fit, jd):
+    """kv qd + kc sign(qd) of joint ``jd`` with ``fit``'s nominal coefficients: the friction whose power drives the
+    energy state (Algorithm 6's first W)."""
+    cj = fit.coef[jd.joint]
+    names = nominal_names(prep.robot_kind)
+    return cj[names.index("kv")] * jd.v + cj[names.index("kc")] * np.sign(jd.v)
+
+
 def _candidates(prep, model, fit, accepted, cache=None, changed=None):
     """All extensions proposed for the current residual (not yet accepted ones). ``cache``: joint ->
     proposals from the previous round, reused for joints whose model did not change."""
@@ -352,16 +373,11 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
         r = _residual(prep, fit, j)
         X = model.design_with_shared(j)
         inner = _inner_fits(model, jd, X)
-        train = InnerFits(X, jd.y, jd.train, None, model.nonneg(j))
+        fit_train = _train_error_fn(model, jd, X)
 
         def fit_inner(C, nonneg=False, inner=inner):
             """Inner-split error of the model plus columns C (``nonneg``: C's coefficients kept >= 0 too)."""
             return inner.error(C, nonneg)[0]
-
-        def fit_train(C, train=train):
-            """Training error of the model plus columns C and C's coefficients."""
-            err, c = train.error(C)
-            return err, c[train.p:]
 
         def have(effect, j=j):
             return (effect, j) in accepted
@@ -376,10 +392,7 @@ def _candidates(prep, model, fit, accepted, cache=None, changed=None):
             longest = len(calls)        # the ripple's scan: the longest detector, started first
             calls.append(lambda: det.ripple(jd, r, n_components=RIPPLE_COMPONENTS, fit_inner=fit_inner))
         if not have("energy_dependent_friction"):
-            cj = fit.coef[j]
-            names = nominal_names(prep.robot_kind)
-            kv, kc = cj[names.index("kv")], cj[names.index("kc")]
-            F_full = kv * jd.v + kc * np.sign(jd.v)
+            F_full = _nominal_friction(prep, fit, jd)
             calls.append(lambda: det.energy(jd, r, F_full, fit_train, energy_fn=energy_fn(prep)))
         if not have("abrupt_change"):
             ecols = _energy_cols(model, j)
@@ -1599,24 +1612,11 @@ def motion_line_gate(prep, alpha: float = ALPHA, min_gain: float = MIN_GAIN) -> 
 CHANGE_BESIDE_DRIFT_AT_FIXED_POINT_RULE = True
 
 
-def _train_error_fn(model, jd):
-    """``fit_train(C)`` of :func:`_candidates`: the training error of ``model`` plus columns C, and C's coefficients."""
-    train = InnerFits(model.design_with_shared(jd.joint), jd.y, jd.train, None, model.nonneg(jd.joint))
-
-    def fit_train(C, train=train):
-        err, c = train.error(C)
-        return err, c[train.p:]
-    return fit_train
-
-
 def _energy_candidate(prep, model, fit, j, until_settled=None):
-    """Joint ``j``'s energy-drift candidate on the residual of ``model`` (as the search proposes it)."""
+    """Joint ``j``'s energy-drift candidate on the residual of ``model`` (as :func:`_candidates` proposes it)."""
     jd = prep.joints[j]
-    names = nominal_names(prep.robot_kind)
-    cj = fit.coef[j]
-    F_full = cj[names.index("kv")] * jd.v + cj[names.index("kc")] * np.sign(jd.v)
-    return det.energy(jd, _residual(prep, fit, j), F_full, _train_error_fn(model, jd), energy_fn=energy_fn(prep),
-                      until_settled=until_settled)
+    return det.energy(jd, _residual(prep, fit, j), _nominal_friction(prep, fit, jd), _train_error_fn(model, jd),
+                      energy_fn=energy_fn(prep), until_settled=until_settled)
 
 
 def change_beside_drift_at_fixed_point(prep, model, sigma, alpha: float = ALPHA, min_gain: float = MIN_GAIN):
