@@ -105,6 +105,20 @@ def against_row(script, files):
     return out[-1]
 
 
+def lanes_literal(letters):
+    """a test's ``lanes=`` argument of :func:`conftest.probe_lanes` for these lane letters: a string while every letter
+    is one character, else the list form ``[*"ab...z", "za", ...]``"""
+    one, more = [x for x in letters if len(x) == 1], [x for x in letters if len(x) > 1]
+    if not more:
+        return f'lanes="{"".join(one)}"'
+    return f'lanes=[*"{"".join(one)}", ' + ", ".join(f'"{x}"' for x in more) + "]"
+
+
+def lanes_sub(name, letters):
+    """extend the test's ``lanes=`` by the last of ``letters``"""
+    tsub(name, lanes_literal(letters[:-1]), lanes_literal(letters))
+
+
 def _and(keys):
     """'a', 'a and b', 'a, b and c'"""
     keys = [str(k) for k in keys]
@@ -246,7 +260,7 @@ def r106():
         cmds.append(f"OPENBLAS_NUM_THREADS=1 python benchmarks/{script} benchmarks/results/{pre}_lane_{L}.json $(python benchmarks/{script} --keys screened benchmarks/results/{pre}_screen_{S}.json)")
     insert_line_after(lambda l: f"{pre}_screen_{pS}.json" in l and l.startswith(("OPENBLAS", "python")), cmds, "106 cmds")
     name = "test_diagnose_motion_line_linear_response.py"
-    lanes = "".join(FL.letters(pre, "lane"))
+    lanes = FL.letters(pre, "lane")
     if L:
         table_row_after(pre, pL, row, "106 table")
         # reading
@@ -257,7 +271,7 @@ def r106():
         newr = f"; {int(m.group(1)) + len(gated)} with {m.group(2)}, {m.group(3)} and lane {L}'s, where it did not act)."
         doc_sub(old, newr, "106 reading")
         tsub(name, " ".join(old.split()), " ".join(newr.split()))
-        tsub(name, f'lanes="{lanes[:-1]}"', f'lanes="{lanes}"')
+        lanes_sub(name, lanes)
         idx = len(lanes) - 1
     else:
         idx = None
@@ -313,8 +327,8 @@ def lane_round(r):
     doc_rsub_in(f"{pre}_lane_{pL}.json", re.escape(count_fmt.format(fmt_int(old))),
                 lambda m: count_fmt.format(fmt_int(old + len(keys))), f"{r} count")
     tsub(name, count_fmt.format(fmt_int(old)), count_fmt.format(fmt_int(old + len(keys))))
-    lanes = "".join(FL.letters(pre, "lane"))
-    tsub(name, f'lanes="{lanes[:-1]}"', f'lanes="{lanes}"')
+    lanes = FL.letters(pre, "lane")
+    lanes_sub(name, lanes)
     # keys line: after the last "assert keys[i] == [k for k in touchable if ..."
     t = tests[name]
     ms = list(re.finditer(r"\n(    assert keys\[(\d+)\] == [^\n]*)", t))
@@ -411,8 +425,7 @@ def r98():
     screen_cmds(pre, script, pS, S, f"k{S}.txt", "touchable", [(S, None)], lane_cmd=lane_cmd)
     if L:
         table_row_after(pre, pL, row, "98 table")
-        lanes = "".join(FL.letters(pre, "lane"))
-        tsub(name, f'lanes="{lanes[:-1]}"', f'lanes="{lanes}"')
+        lanes_sub(name, FL.letters(pre, "lane"))
         trsub(name, r'(\((\d+), "\w+", \[[\d, ]*\]\))\):\n',
               lambda m: m.group(1) + f', ({int(m.group(2)) + 1}, "{S}", {listed})):\n')
     tsub(name, f'"{pS}")}}', f'"{pS}", "{S}")}}')
@@ -559,8 +572,7 @@ def r93():
         doc_sub(f"In the other {old - 3} no load", f"In the other {new_n - 3} no load", "93 other")
         tsub(name, f"It marked a load in three logs of {old}", f"It marked a load in three logs of {new_n}")
         tsub(name, f"assert len(listed) == {old} and", f"assert len(listed) == {new_n} and")
-        lanes = "".join(FL.letters(pre, "lane"))
-        tsub(name, f'lanes="{lanes[:-1]}")', f'lanes="{lanes}")')
+        lanes_sub(name, FL.letters(pre, "lane"))
         trsub(name, r"(assert \[len\(d\[\"keys_examined\"\]\) for _, d in files\] == \[33, 33,[\d, ]*?)\]\n",
               lambda m: m.group(1) + f", {len(listed)}]\n")
     log.append(f"93 screen {S} ({n}, listed {listed})" + (f" lane {L}" if L else ""))
