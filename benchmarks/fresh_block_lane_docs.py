@@ -5,8 +5,8 @@ lines and table row in ``docs/readme/diagnose_testbench.md``, the counts of its 
 table test (its letters, the block's keys or screen sizes, the counts) the way the previous block's edits did.
 
 It writes nothing when anything is off: a rule that acted in a lane, a screen that lists logs where its round
-needs a hand-written reading, or a round whose sentence it does not know (rounds 92, 95, 104, 105 with keys; 90 with
-keys is written; round 96's on/off change and round 97's guard that fired take their hand-written clause from the
+needs a hand-written reading, or a round whose sentence it does not know (rounds 92, 95, 104, 105 with keys; 90 and
+108 with keys are written; round 96's on/off change and round 97's guard that fired take their hand-written clause from the
 environment, ``FRESH_LANE_96="on and off: ..."`` and ``FRESH_LANE_97="the guard fired in ..."``).  Those are printed (``BY HAND``) or stop the script with the reason; they are written by hand after
 it.  The previous sentence of each round is found in that round's ``###`` section by the previous letter, so the
 docs must hold the previous block's sentences as this script (or the hand) wrote them.
@@ -518,6 +518,15 @@ def r96_97():
     tsub("test_diagnose_beyond_positions_concentrated_gain.py", f'"_lane_{pL7}.json"]', f'"_lane_{pL7}.json", "_lane_{L7}.json"]')
     trsub("test_diagnose_beyond_positions_concentrated_gain.py", r"len\(examined\) == (\d+)\n",
           lambda m: f"len(examined) == {int(m.group(1)) + len(listed)}\n")
+    if clause7:
+        # the keys where the guard fired join the test's set and count; its comment and any changed count of the
+        # against-kept row stay for the hand (printed below)
+        fired_keys = sorted(t["k"] for t in load(f"{pre7}_lane_{L7}.json")["touched"])
+        trsub("test_diagnose_beyond_positions_concentrated_gain.py", r"(\{38878, [\d, ]+)\} <= set\(",
+              lambda m: m.group(1) + "".join(f", {k}" for k in fired_keys) + "} <= set(")
+        trsub("test_diagnose_beyond_positions_concentrated_gain.py", r'assert len\(s\["guard_fired"\]\) == (\d+)',
+              lambda m: f'assert len(s["guard_fired"]) == {int(m.group(1)) + len(fired_keys)}')
+        log.append(f"97: guard fired in {fired_keys}: its test comment BY HAND")
     old_c, new_c = row_cells(old_kept), row_cells(kept_row)
     if old_c[3:] != new_c[3:] or int(new_c[1]) != int(old_c[1]) + len(listed):
         print("NOTE 97 against-kept changed beyond the count:", old_kept, "->", kept_row)
@@ -709,6 +718,68 @@ def r103():
     trsub("test_diagnose_time_law_beside_untestable_stribeck.py", r"# 43000-(\d+)\), 42666", lambda m: f"# 43000-{E - 1}), 42666")
 
 
+# --------------------------------------------------------------- round 108 (lane of the touchable rows, if any)
+def r108():
+    """The probe paragraph's last clause: a 'have none' that ends just before the block is extended (else one is added);
+    a lane that did not act gets its sentence, command line, table row, count and test line."""
+    it = P[108]
+    pre, script, keys = it["prefix"], it["script"], it["keys"]
+    name = "test_diagnose_change_beside_drift.py"
+    tail = r"(the rule did not fire\.|the rule acted in (?:neither|none)\.|have\s+no\s+touchable\s+row\.|have none\.)"
+    a, b = section_bounds(f"{pre}_lane_a.json")
+    sec = doc[a:b]
+    probe_par = sec[sec.index("**Probe**"):]
+    probe_par = probe_par[:probe_par.index("\n\n")]
+    last = list(re.finditer(tail, probe_par))[-1]
+    m_none = re.search(r"The fresh blocks (\d+)-(\d+) (have none|have\s+no\s+touchable\s+row)\.$", probe_par[:last.end()])
+    t = tests[T(name)]
+    if not keys:
+        if m_none and int(m_none.group(2)) == A - 1:
+            lo = m_none.group(1)
+            doc_sub(m_none.group(0), f"The fresh blocks {lo}-{E - 1} {m_none.group(3)}.", "108 none")
+            tsub(name, f"assert not [k for k in touchable if {lo} <= k < {A}]",
+                 f"assert not [k for k in touchable if {lo} <= k < {E}]")
+        else:
+            new = probe_par[:last.end()] + f" The fresh blocks {RNG} have none."
+            doc_sub(probe_par[:last.end()], new, "108 none")
+            ms = list(re.finditer(r"\n(    assert (?:keys\[\d+\] == |not \[k for k in touchable if )[^\n]*)", t))
+            tests[name] = t[:ms[-1].end()] + f"\n    assert not [k for k in touchable if {A} <= k < {E}]" + t[ms[-1].end():]
+        log.append("108 none")
+        return
+    L = it["lane"]
+    pL = prev_letter(pre, "lane", L)
+    row, nl, _ = check_quiet(script, pre, L, "108")
+    assert nl == len(keys), (nl, keys)
+    if len(keys) == 1:
+        sent = (f" Lane {L}, run with {SHA}: {keys[0]}, the one touchable row of the fresh blocks {RNG}; the rule did "
+                "not fire.")
+    else:
+        word = "neither" if len(keys) == 2 else "none"
+        sent = (f" Lane {L}, run with {SHA}: the {len(keys)} touchable rows of the fresh blocks {RNG} ({join(keys)}); "
+                f"the rule acted in {word}.")
+    doc_sub(probe_par[:last.end()], probe_par[:last.end()] + sent, "108 prose")
+    _lane_cmd_and_row(pre, script, pL, L, keys, row, "108")
+    m = re.search(r"\*\*Reading\.\*\* The rule acted in one log of (\d+)\.", doc[a:])
+    old = int(m.group(1))
+    doc_sub(f"**Reading.** The rule acted in one log of {old}.", f"**Reading.** The rule acted in one log of {old + len(keys)}.",
+            "108 count")
+    tsub(name, f"The rule acted in one log of {old}.", f"The rule acted in one log of {old + len(keys)}.")
+    lanes_sub(name, FL.letters(pre, "lane"))
+    i = len(FL.letters(pre, "lane")) - 1
+    ms = list(re.finditer(r"\n(    assert (?:keys\[\d+\] == |not \[k for k in touchable if )[^\n]*)", tests[name]))
+    if m_none and int(m_none.group(2)) == A - 1:     # the 'have none' just before the block: one range with the lane's
+        lo = m_none.group(1)
+        tnone = f"\n    assert not [k for k in touchable if {lo} <= k < {A}]"
+        if tnone in tests[name]:
+            tests[name] = tests[name].replace(tnone, "")
+        line = (f"\n    assert keys[{i}] == [k for k in touchable if {lo} <= k < {E}] == {keys}     # {lo}-{A - 1}: none")
+        ms = list(re.finditer(r"\n(    assert (?:keys\[\d+\] == |not \[k for k in touchable if )[^\n]*)", tests[name]))
+    else:
+        line = f"\n    assert keys[{i}] == [k for k in touchable if {A} <= k < {E}] == {keys}"
+    tests[name] = tests[name][:ms[-1].end()] + line + tests[name][ms[-1].end():]
+    log.append(f"108 lane {L} ({len(keys)})")
+
+
 def r95():
     if keys_of(95):
         log.append(f"95 has keys {keys_of(95)}: BY HAND")
@@ -748,6 +819,7 @@ r88()
 r74()
 r103()
 r95()
+r108()
 DOC.write_text(doc)
 for name, t in tests.items():
     (Path("tests") / name).write_text(t)
