@@ -239,7 +239,8 @@ def test_kept_and_its_table_is_its_jsons():
                                      ("i", 45800, 200, [45814, 45858, 45924], 11),
                                      ("j", 46000, 200, [46078], 12),
                                      ("k", 46200, 200, [46281, 46317, 46364], 13),
-                                     ("l", 46400, 200, [46452, 46518, 46523], 14)):
+                                     ("l", 46400, 200, [46452, 46518, 46523], 14),
+                                     ("m", 46600, 200, [], None)):
         screen = json.loads((root / f"{pre}_screen_{x}.json").read_text())
         assert screen["keys_screened"] == [k for k in every_loop if start <= k < start + 200], x
         assert len(screen["keys_screened"]) == n and [k for k, _ in screen["touched"]] == gated, x
