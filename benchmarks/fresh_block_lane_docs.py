@@ -5,7 +5,7 @@ lines and table row in ``docs/readme/diagnose_testbench.md``, the counts of its 
 table test (its letters, the block's keys or screen sizes, the counts) the way the previous block's edits did.
 
 It writes nothing when anything is off: a rule that acted in a lane, a screen that lists logs where its round
-needs a hand-written reading, or a round whose sentence it does not know (rounds 92, 95, 104, 105 with keys; 90 and
+needs a hand-written reading, or a round whose sentence it does not know (rounds 92, 104, 105 with keys; 90, 95 and
 108 with keys are written; round 96's on/off change and round 97's guard that fired take their hand-written clause from the
 environment, ``FRESH_LANE_96="on and off: ..."`` and ``FRESH_LANE_97="the guard fired in ..."``).  Those are printed (``BY HAND``) or stop the script with the reason; they are written by hand after
 it.  The previous sentence of each round is found in that round's ``###`` section by the previous letter, so the
@@ -780,10 +780,39 @@ def r108():
     log.append(f"108 lane {L} ({len(keys)})")
 
 
+def r95_lane():
+    """Round 95's lane that did not act: its clause after the last of the list, command line, table row, count and test
+    line."""
+    it = P[95]
+    pre, script, keys, L = it["prefix"], it["script"], it["keys"], it["lane"]
+    pL = prev_letter(pre, "lane", L)
+    name = "test_diagnose_ripple_where_law_falls.py"
+    row, nl, _ = check_quiet(script, pre, L, "95")
+    assert nl == len(keys), (nl, keys)
+    if len(keys) == 1:
+        what = f"{keys[0]}, the one of {RNG}, run with {SHA} (it did not act)"
+    else:
+        what = (f"{join(keys)}, the {len(keys)} of {RNG}, run with {SHA} "
+                f"(it acted in {'neither' if len(keys) == 2 else 'none'})")
+    doc_rsub(r"(; (?:lane \w+, [^;]*?\(it [^);]*\)|the fresh blocks \d+-\d+ have none))\. The ninety-fourth round",
+             lambda m: f"{m.group(1)}; lane {L}, {what}. The ninety-fourth round", "95 lane")
+    insert_line_after(lambda l: f"{pre}_lane_{pL}.json " in l and l.startswith("OPENBLAS"),
+                      [f"OPENBLAS_NUM_THREADS=1 python benchmarks/{script} {' '.join(it['args'])} "
+                       f"benchmarks/results/{pre}_lane_{L}.json {' '.join(map(str, keys))}"], "95 cmd")
+    table_row_after(pre, pL, row, "95 table")
+    _bump("The ninety-fifth round's rule acted in four logs of {}.", len(keys), "95 count")
+    lanes_sub(name, FL.letters(pre, "lane"))
+    t = tests[T(name)]
+    i = max(int(x) for x in re.findall(r"f95\[(\d+)\]\[1\]\[\"keys_examined\"\]", t)) + 1
+    ms = list(re.finditer(r"\n    assert (?:f95\[\d+\]\[1\]\[\"keys_examined\"\]|not \[k for k in touchable if )[^\n]*", t))
+    line = f"\n    assert f95[{i}][1][\"keys_examined\"] == [k for k in touchable if {A} <= k < {E}] == {keys}"
+    tests[name] = t[:ms[-1].end()] + line + t[ms[-1].end():]
+    log.append(f"95 lane {L} ({len(keys)})")
+
+
 def r95():
     if keys_of(95):
-        log.append(f"95 has keys {keys_of(95)}: BY HAND")
-        return
+        return r95_lane()
     # a 'have none' range that ends just before the block is extended; after a lane, a new one is added
     m = re.search(r"the fresh blocks (\d+)-(\d+) have none\. The ninety-fourth round", doc)
     name = "test_diagnose_ripple_where_law_falls.py"
