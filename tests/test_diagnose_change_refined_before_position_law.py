@@ -104,7 +104,7 @@ def test_kept_and_its_table_is_its_jsons():
     assert core.CHANGE_REFINED_WHERE_LAW_FALLS_RULE is True
     probe = bench_module("probe_change_refined_before_position_law")
     doc, files, examined, s = probe_lanes(probe, "diagnose_change_refined_before_position_law_round100_lane_*.json",
-                                          lanes=[*"abcdefghijklmnopqrstuvwxyz", "za", "zb", "zc", "zd"])
+                                          lanes=[*"abcdefghijklmnopqrstuvwxyz", "za", "zb", "zc", "zd", "ze"])
     keys = [d["keys_examined"] for _, d in files]
     lane_ab = sorted(keys[0] + keys[1])
     assert len(keys[0]) == len(keys[1]) == 276 and lane_ab == sorted(set(lane_ab)) and 41128 in keys[0]
@@ -148,6 +148,7 @@ def test_kept_and_its_table_is_its_jsons():
     assert keys[27] == [k for k in touchable if 46400 <= k < 46600] == [46453]
     assert keys[28] == [k for k in touchable if 46600 <= k < 46800] == [46607, 46627, 46762]
     assert keys[29] == [k for k in touchable if 46800 <= k < 47000] == [46808, 46825, 46934, 46974]
+    assert keys[30] == [k for k in touchable if 47000 <= k < 47200] == [47068, 47069]
     assert [k for k in touchable if 45600 <= k < 45800] == sorted(keys[22] + keys[23])
     kept = {k: r for (f, _, k), (_, r) in bench_module("bench_diagnose_testbench").kept_rows_naming("any").items()
             if f == "loop"}
@@ -162,4 +163,4 @@ def test_kept_and_its_table_is_its_jsons():
     _, _, differences = probe_results("diagnose_change_refined_before_position_law_round100_lane_*.json")
     for f, d in files:
         assert differences(d) == [], f.name
-    assert "The rule acted in two logs of 751." in " ".join(doc.split())
+    assert "The rule acted in two logs of 753." in " ".join(doc.split())

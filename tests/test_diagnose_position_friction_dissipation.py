@@ -103,7 +103,7 @@ def test_kept_and_its_table_is_its_jsons():
     the fresh blocks 33000-33199 run after the screen was drawn, lane e the 3 of the fresh blocks 33200-33399, lane f the 3 of 33400-33599, lane g the 10 of 33600-33999, lane h the 8 of 34000-34399, lane i the 9 of 34400-34799, lane j the 5 of 34800-34999, lane k the 8 of 35000-35399, lane l the 5 of 35400-35599,
     lane m the 5 of 35600-35999, lane n the 9 of 36000-36399,
     lane o the 8 of 36400-36799, lane p the 6 of
-    36800-37199, lane q the 3 of 37200-37399, lane r the 4 of 37400-37599, lane s the 4 of 37600-37999, lane t the 5 of 38000-38199, lane u the 3 of 38200-38399, lane v the 4 of 38400-38599, lane w the 6 of 38600-38799, lane x the 5 of 38800-38999, lane y the 1 of 39000-39199, lane z the 5 of 39200-39399, lane za the 4 of 39400-39599, lane zb the 6 of 39600-39799, lane zc the 5 of 39800-39999, lane zd the 3 of 40000-40199, lane ze the 3 of 40200-40399, lane zf the 4 of 40600-40799, lane zg the 4 of 40800-40999, lane zh the 4 of 41000-41199, lane zi the 1 of 41200-41399, lane zj the 6 of 41400-41599, lane zk the 3 of 41600-41799, lane zl the 6 of 41800-41999, lane zm the 2 of 42000-42199, lane zn the 4 of 42200-42399, lane zo the 2 of 42400-42599, lane zp the 2 of 42600-42799, lane zq the 5 of 42800-42999, lane zr the 3 of 43000-43399, lane zs the 13 of 43400-43999, lane zt the 2 of 44000-44199, lane zu the 4 of 44200-44399, lane zv the 1 of 44400-44599, lane zw the 6 of 44800-44999, lane zx the 2 of 45000-45199, lane zy the 4 of 45200-45399, lane zz the 2 of 45400-45599, lane zza the 6 of 45600-45799, lane zzb the 3 of 45800-45999, lane zzc the 6 of 46000-46199, lane zzd the 5 of 46200-46399, lane zze the 5 of 46400-46599, lane zzf the 4 of 46600-46799, lane zzg the 4 of 46800-46999; every
+    36800-37199, lane q the 3 of 37200-37399, lane r the 4 of 37400-37599, lane s the 4 of 37600-37999, lane t the 5 of 38000-38199, lane u the 3 of 38200-38399, lane v the 4 of 38400-38599, lane w the 6 of 38600-38799, lane x the 5 of 38800-38999, lane y the 1 of 39000-39199, lane z the 5 of 39200-39399, lane za the 4 of 39400-39599, lane zb the 6 of 39600-39799, lane zc the 5 of 39800-39999, lane zd the 3 of 40000-40199, lane ze the 3 of 40200-40399, lane zf the 4 of 40600-40799, lane zg the 4 of 40800-40999, lane zh the 4 of 41000-41199, lane zi the 1 of 41200-41399, lane zj the 6 of 41400-41599, lane zk the 3 of 41600-41799, lane zl the 6 of 41800-41999, lane zm the 2 of 42000-42199, lane zn the 4 of 42200-42399, lane zo the 2 of 42400-42599, lane zp the 2 of 42600-42799, lane zq the 5 of 42800-42999, lane zr the 3 of 43000-43399, lane zs the 13 of 43400-43999, lane zt the 2 of 44000-44199, lane zu the 4 of 44200-44399, lane zv the 1 of 44400-44599, lane zw the 6 of 44800-44999, lane zx the 2 of 45000-45199, lane zy the 4 of 45200-45399, lane zz the 2 of 45400-45599, lane zza the 6 of 45600-45799, lane zzb the 3 of 45800-45999, lane zzc the 6 of 46000-46199, lane zzd the 5 of 46200-46399, lane zze the 5 of 46400-46599, lane zzf the 4 of 46600-46799, lane zzg the 4 of 46800-46999, lane zzh the 4 of 47000-47199; every
     row the screen lists now was examined; the rule fired in
     the design log only, which lost its wrong name (its rule-on row is now its kept row), and nothing was lost; the
     synth row is the same on and off."""
@@ -113,9 +113,9 @@ def test_kept_and_its_table_is_its_jsons():
     assert core.POSITION_FRICTION_DISSIPATION_RULE is True
     probe = bench_module("probe_position_friction_dissipation")
     doc, files, examined, s = probe_lanes(probe, "diagnose_position_friction_dissipation_round89_lane_*.json",
-                                          lanes=[*"abcdefghijklmnopqrstuvwxyz", "za", "zb", "zc", "zd", "ze", "zf", "zg", "zh", "zi", "zj", "zk", "zl", "zm", "zn", "zo", "zp", "zq", "zr", "zs", "zt", "zu", "zv", "zw", "zx", "zy", "zz", "zza", "zzb", "zzc", "zzd", "zze", "zzf", "zzg"])
+                                          lanes=[*"abcdefghijklmnopqrstuvwxyz", "za", "zb", "zc", "zd", "ze", "zf", "zg", "zh", "zi", "zj", "zk", "zl", "zm", "zn", "zo", "zp", "zq", "zr", "zs", "zt", "zu", "zv", "zw", "zx", "zy", "zz", "zza", "zzb", "zzc", "zzd", "zze", "zzf", "zzg", "zzh"])
     assert [len(d["keys_examined"]) for _, d in files] == [283, 282, 1, 4, 3, 3, 10, 8, 9, 5, 8, 5, 5, 9, 8, 6,
-                                                         3, 4, 4, 5, 3, 4, 6, 5, 1, 5, 4, 6, 5, 3, 3, 4, 4, 4, 1, 6, 3, 6, 2, 4, 2, 2, 5, 3, 13, 2, 4, 1, 6, 2, 4, 2, 6, 3, 6, 5, 5, 4, 4]
+                                                         3, 4, 4, 5, 3, 4, 6, 5, 1, 5, 4, 6, 5, 3, 3, 4, 4, 4, 1, 6, 3, 6, 2, 4, 2, 2, 5, 3, 13, 2, 4, 1, 6, 2, 4, 2, 6, 3, 6, 5, 5, 4, 4, 4]
     # (30798, folded, no longer names a position friction; nor do 14443, 32263 and 33077, refolded by the ninetieth
     # round)
     # (21260, whose kept row from another CPU the ninety-sixth round folded back to today's, became touchable then:
@@ -127,5 +127,5 @@ def test_kept_and_its_table_is_its_jsons():
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     syn = json.loads((root / "diagnose_position_friction_dissipation_round89_synth_1.json").read_text())
     assert syn["on"]["got"] == syn["off"]["got"] == "position_dependent_friction" and syn["on"]["correct"]
-    assert "It fired in one log of 823" in " ".join(doc.split())
+    assert "It fired in one log of 827" in " ".join(doc.split())
 

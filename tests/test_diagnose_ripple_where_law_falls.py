@@ -113,7 +113,7 @@ def test_kept_and_its_tables_are_its_jsons():
     assert core.RIPPLE_REFINED_WHERE_LAW_FALLS_RULE is True
     probe = bench_module("probe_ripple_before_position_law")
     doc94, f94, ex94, s94 = probe_lanes(probe, "diagnose_ripple_before_position_law_round94_lane_*.json", lanes="abc")
-    doc95, f95, ex95, s95 = probe_lanes(probe, "diagnose_ripple_where_law_falls_round95_lane_*.json", lanes="acdefghijklmnopqrstuvwxy")
+    doc95, f95, ex95, s95 = probe_lanes(probe, "diagnose_ripple_where_law_falls_round95_lane_*.json", lanes="acdefghijklmnopqrstuvwxyz")
     # drawn before the fold, which took 6346 and 37278 out of the touchable rows (6346 is now a control row), and
     # before the hundredth round's, which took 16004 out (no position friction set aside any more), and before the
     # hundred-and-sixth round's, which took 18768 out (no load set aside any more)
@@ -150,6 +150,7 @@ def test_kept_and_its_tables_are_its_jsons():
     assert f95[22][1]["keys_examined"] == [k for k in touchable if 46200 <= k < 46400] == [46209, 46298]
     assert not [k for k in touchable if 46400 <= k < 46800]
     assert f95[23][1]["keys_examined"] == [k for k in touchable if 46800 <= k < 47000] == [46841]
+    assert f95[24][1]["keys_examined"] == [k for k in touchable if 47000 <= k < 47200] == [47068]
     assert probe.examined_keys([f for f, _ in f94[:1]]) == lane_a
     assert len(ex94["testbench"]) == 150 and [t for t in f94[1][1]["touched"]] == []
     assert s94["wrong_gained"] == [16004] and s94["wrong_lost"] == [37278]

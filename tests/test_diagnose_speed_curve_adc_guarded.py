@@ -89,18 +89,18 @@ def test_kept_and_its_table_is_its_jsons():
     probe = bench_module("probe_speed_curve_adc_guarded")
     root = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
     screens = {x: json.loads((root / f"diagnose_speed_curve_adc_guarded_round98_screen_{x}.json").read_text())
-               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j", "k", "l", "m", "n", "o", "p", "q", "r", "s", "t", "u", "v", "w", "x", "y", "z", "za", "zb", "zc", "zd", "ze", "zf", "zg", "zh", "zi", "zj", "zk", "zl", "zm")}
-    loop = sorted(k for x in [*"01cdefghijklmnopqrstuvwxyz", "za", "zb", "zc", "zd", "ze", "zf", "zg", "zh", "zi", "zj", "zk", "zl", "zm"] for k in screens[x]["keys_screened"])
+               for x in ("0", "1", "testbench", "c", "d", "e", "f", "g", "h", "i", "j", "k", "l", "m", "n", "o", "p", "q", "r", "s", "t", "u", "v", "w", "x", "y", "z", "za", "zb", "zc", "zd", "ze", "zf", "zg", "zh", "zi", "zj", "zk", "zl", "zm", "zn")}
+    loop = sorted(k for x in [*"01cdefghijklmnopqrstuvwxyz", "za", "zb", "zc", "zd", "ze", "zf", "zg", "zh", "zi", "zj", "zk", "zl", "zm", "zn"] for k in screens[x]["keys_screened"])
     # (21591, refolded by the hundred-and-sixth round, now names a position friction and entered the touchable rows)
     assert [k for k in loop if k not in REFOLDED_ROUND_106] == \
-        [k for k in probe.touchable_keys("loop") if k not in REFOLDED_ROUND_106] and len(loop) == 7296 + 38 + 36 + 37 + 33 + 36 + 36 + 37 + 37 + 38 + 36 + 38 + 37 + 37 + 37 + 36 + 35 + 35 + 39 + 37 + 38 + 75 + 110 + 38 + 37 + 39 + 35 + 40 + 37 + 37 + 39 + 39 + 38 + 36 + 40 + 36 + 38 + 33
+        [k for k in probe.touchable_keys("loop") if k not in REFOLDED_ROUND_106] and len(loop) == 7296 + 38 + 36 + 37 + 33 + 36 + 36 + 37 + 37 + 38 + 36 + 38 + 37 + 37 + 37 + 36 + 35 + 35 + 39 + 37 + 38 + 75 + 110 + 38 + 37 + 39 + 35 + 40 + 37 + 37 + 39 + 39 + 38 + 36 + 40 + 36 + 38 + 33 + 37
     # the fresh blocks' screens, run with the rule on: (screen, logs screened, first spec, listed); h's two were
     # diagnosed with the rule on by lane c (no law marked)
     fresh = [("c", 38, 39000, []), ("d", 36, 39200, []), ("e", 37, 39400, []), ("f", 33, 39600, []),
              ("g", 36, 39800, []), ("h", 36, 40000, [40093, 40136]), ("i", 37, 40200, []), ("j", 37, 40400, []),
              ("k", 38, 40600, []), ("l", 36, 40800, []), ("m", 38, 41000, [41100]), ("n", 37, 41200, [41350]),
              ("o", 37, 41400, [41407, 41473]), ("p", 37, 41600, [41605, 41677]),
-             ("q", 36, 41800, [41869]), ("r", 35, 42000, [42010]), ("s", 35, 42200, []), ("t", 39, 42400, [42529]), ("u", 37, 42600, [42661, 42707]), ("v", 38, 42800, []), ("w", 75, 43000, []), ("x", 110, 43400, [43528]), ("y", 38, 44000, []), ("z", 37, 44200, [44320]), ("za", 39, 44400, [44518, 44598]), ("zb", 35, 44600, [44782]), ("zc", 40, 44800, []), ("zd", 37, 45000, [45103]), ("ze", 37, 45200, [45390]), ("zf", 39, 45400, [45416]), ("zg", 39, 45600, [45746]), ("zh", 38, 45800, [45812]), ("zi", 36, 46000, [46159]), ("zj", 40, 46200, []), ("zk", 36, 46400, []), ("zl", 38, 46600, []), ("zm", 33, 46800, [])]
+             ("q", 36, 41800, [41869]), ("r", 35, 42000, [42010]), ("s", 35, 42200, []), ("t", 39, 42400, [42529]), ("u", 37, 42600, [42661, 42707]), ("v", 38, 42800, []), ("w", 75, 43000, []), ("x", 110, 43400, [43528]), ("y", 38, 44000, []), ("z", 37, 44200, [44320]), ("za", 39, 44400, [44518, 44598]), ("zb", 35, 44600, [44782]), ("zc", 40, 44800, []), ("zd", 37, 45000, [45103]), ("ze", 37, 45200, [45390]), ("zf", 39, 45400, [45416]), ("zg", 39, 45600, [45746]), ("zh", 38, 45800, [45812]), ("zi", 36, 46000, [46159]), ("zj", 40, 46200, []), ("zk", 36, 46400, []), ("zl", 38, 46600, []), ("zm", 33, 46800, []), ("zn", 37, 47000, [47069])]
     for x, n, first, listed in fresh:
         assert len(screens[x]["keys_screened"]) == n and min(screens[x]["keys_screened"]) >= first, x
         assert [k for k, _ in screens[x]["touched"]] == listed and screens[x]["refused"] == [], x
@@ -109,7 +109,7 @@ def test_kept_and_its_table_is_its_jsons():
     assert [k for x in "01" for k, _ in screens[x]["refused"]] == [17787]
     listed = probe.screened_keys([root / f"diagnose_speed_curve_adc_guarded_round98_screen_{x}.json" for x in "01"])
     assert len(listed) == 140 and 33286 in listed
-    doc, files, examined, s = probe_lanes(probe, "diagnose_speed_curve_adc_guarded_round98_lane_*.json", lanes="abcdefghijklmnopqrstu")
+    doc, files, examined, s = probe_lanes(probe, "diagnose_speed_curve_adc_guarded_round98_lane_*.json", lanes="abcdefghijklmnopqrstuv")
     assert sorted(k for _, d in files[:2] for k in d["keys_examined"]) == listed and not examined["testbench"]
     assert files[2][1]["keys_examined"] == probe.screened_keys(
         [root / "diagnose_speed_curve_adc_guarded_round98_screen_h.json"]) and files[2][1]["touched"] == []
@@ -123,7 +123,12 @@ def test_kept_and_its_table_is_its_jsons():
         assert files[i][1]["keys_examined"] == probe.screened_keys(
             [root / f"diagnose_speed_curve_adc_guarded_round98_screen_{x}.json"]) == lane, x
         assert files[i][1]["touched"] == [], x
-    assert sorted(t["k"] for _, d in files for t in d["touched"]) == [7251, 11891, 15323, 17828, 33286]
+    # lane v (screen zn): 47069, an asymmetric level beside Stribeck at 1000 Hz with a quantized torque, whose load the
+    # rule marks: the Stribeck law joins its ambiguity (missed with the rule off; the fresh row, run with it on, is kept)
+    assert files[21][1]["keys_examined"] == probe.screened_keys(
+        [root / "diagnose_speed_curve_adc_guarded_round98_screen_zn.json"]) == [47069]
+    assert [t["k"] for t in files[21][1]["touched"]] == [47069]
+    assert sorted(t["k"] for _, d in files for t in d["touched"]) == [7251, 11891, 15323, 17828, 33286, 47069]
     for _, d in files:
         for t in d["touched"]:
             for m in t["marked"]:
@@ -131,8 +136,8 @@ def test_kept_and_its_table_is_its_jsons():
                 v = m["velocity_reading_under_adc_step"]
                 assert v["structure_rms"] < v["adc_step"]
     assert s["wrong_gained"] == s["null_findings_gained"] == s["oov_unexplained_lost"] == s["outright_lost"] == []
-    assert s["wrong_lost"] == [33286] and (s["missed_off"], s["missed_on"]) == (3, 0)
-    assert s["off_differs_from_kept_row"] == [17828]
+    assert s["wrong_lost"] == [33286] and (s["missed_off"], s["missed_on"]) == (4, 0)
+    assert s["off_differs_from_kept_row"] == [17828, 47069]     # 47069: its kept row is the fresh rule-on row
     _, _, differences = probe_results("diagnose_speed_curve_adc_guarded_round98_lane_*.json")
     for f, d in files:
         assert differences(d) == [], f.name

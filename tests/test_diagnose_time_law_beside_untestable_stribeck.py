@@ -139,7 +139,7 @@ def test_kept_and_its_table_is_its_jsons():
     touchable = probe.kept_keys("loop", probe.touchable)
     assert [k for k in keys[0] if k not in REFOLDED_ROUND_103] == [k for k in touchable if k < 42000]
     # lane c: the touchable row of the fresh blocks 42000-42999 (42000-42599 and 42800-42999 have none, nor do
-    # 43000-46999), 42666, which the hundred-and-fourth round's fold then took out of them
+    # 43000-47199), 42666, which the hundred-and-fourth round's fold then took out of them
     from conftest import REFOLDED_ROUND_104
     assert keys[2] == [42666] and 42666 in REFOLDED_ROUND_104 and [k for k in touchable if k >= 42000] == []
     assert probe.kept_keys("testbench", probe.touchable) == []
