@@ -6,10 +6,14 @@ table test (its letters, the block's keys or screen sizes, the counts) the way t
 
 It writes nothing when anything is off: a rule that acted in a lane, a screen that lists logs where its round
 needs a hand-written reading, or a round whose sentence it does not know (rounds 92, 104, 105 with keys; 90, 95 and
-108 with keys are written; round 96's on/off change and round 97's guard that fired take their hand-written clause from the
-environment, ``FRESH_LANE_96="on and off: ..."`` and ``FRESH_LANE_97="the guard fired in ..."``).  Those are printed (``BY HAND``) or stop the script with the reason; they are written by hand after
-it.  The previous sentence of each round is found in that round's ``###`` section by the previous letter, so the
-docs must hold the previous block's sentences as this script (or the hand) wrote them.
+108 with keys are written).  A lane where a rule acted takes its hand-written clause from the environment:
+``FRESH_LANE_96="on and off: ..."`` (round 96's on/off change, a lost wrong name or a mended log included),
+``FRESH_LANE_97="the guard fired in ..."``, ``FRESH_LANE_98="lane v diagnosed it ...: ..., its kept row"`` (the
+clause must end with "its kept row", so that the next block finds it) and ``FRESH_LANE_106="the rule fired ..."``;
+the readings and test lines those rounds then need are printed (``BY HAND``), as is anything else it stops on, and
+are written by hand after it.  The previous sentence of each round is found in that round's ``###`` section by the
+previous letter, so the docs must hold the previous block's sentences as this script (or the hand) wrote them.  It
+does not rebuild README.md (``python docs/build_readme.py``).
 
     python benchmarks/fresh_block_lanes.py --start 45600 --end 45800 --json plan.json    # before --run
     python benchmarks/fresh_block_lane_docs.py plan.json 59470c9 45600 45800              # after the JSONs are in
@@ -268,13 +272,19 @@ def r106():
         table_row_after(pre, pL, row, "106 table")
         # reading
         m = re.search(r"; (\d+) with ((?:lane \w+'s, )*lane \w+'s) and (lane \w+'s), where it did not act\)\.", doc)
+        # after a hand-written clause (a lane where the rule fired), the list goes on with a clause of its own
+        m2 = re.search(r"; (?:\w+ of )?(\d+) with lane \w+'s[^;()]*\)\. In 44020", doc)
         if clause106:
             log.append("106: the rule fired: its reading and the test's reading BY HAND")
-        elif not m:
+        elif not m and not m2:
             raise SystemExit("106 reading")
         if not clause106:
-            old = m.group(0)
-            newr = f"; {int(m.group(1)) + len(gated)} with {m.group(2)}, {m.group(3)} and lane {L}'s, where it did not act)."
+            if m:
+                old = m.group(0)
+                newr = f"; {int(m.group(1)) + len(gated)} with {m.group(2)}, {m.group(3)} and lane {L}'s, where it did not act)."
+            else:
+                old = m2.group(0)[:-len(". In 44020")]
+                newr = old[:-1] + f"; {int(m2.group(1)) + len(gated)} with lane {L}'s, where it did not act)"
             doc_sub(old, newr, "106 reading")
             tsub(name, " ".join(old.split()), " ".join(newr.split()))
         lanes_sub(name, lanes)
