@@ -123,12 +123,6 @@ def lanes_sub(name, letters):
     tsub(name, lanes_literal(letters[:-1]), lanes_literal(letters))
 
 
-def _and(keys):
-    """'a', 'a and b', 'a, b and c'"""
-    keys = [str(k) for k in keys]
-    return keys[0] if len(keys) == 1 else ", ".join(keys[:-1]) + " and " + keys[-1]
-
-
 def row_cells(row):
     return [c.strip() for c in row.strip("|").split("|")]
 
@@ -181,6 +175,13 @@ def bump_count(pattern_fmt, old, new, what):
 def lane_info(prefix, L):
     d = load(f"{prefix}_lane_{L}.json")
     return d
+
+
+def lane_row(script, prefix, L):
+    """(row, logs examined, rule fired) of lane ``L``'s --against-off-rows row"""
+    row = against_row(script, [f"{prefix}_lane_{L}.json"])
+    c = row_cells(row)
+    return row, int(c[1]), int(c[2])
 
 
 def check_quiet(script, prefix, L, what, allow_fired=False):
@@ -428,8 +429,7 @@ def r98():
         # a lane where the rule marked a law takes its clause from FRESH_LANE_98 (ending "its kept row"; reading by hand)
         clause98 = os.environ.get("FRESH_LANE_98")
         if clause98:
-            row = against_row(script, [f"{pre}_lane_{L}.json"])
-            nl, fired = int(row_cells(row)[1]), int(row_cells(row)[2])
+            row, nl, fired = lane_row(script, pre, L)
             log.append("98: the rule marked a law: its reading BY HAND")
         else:
             row, nl, fired = check_quiet(script, pre, L, "98")
@@ -515,14 +515,12 @@ def r96_97():
     # a guard that fired needs its reading by hand: FRESH_LANE_97="the guard fired in ..." (the parenthesis)
     clause7 = os.environ.get("FRESH_LANE_97")
     if clause7:
-        row7 = against_row(script7, [f"{pre7}_lane_{L7}.json"])
-        nl7, fired7 = int(row_cells(row7)[1]), int(row_cells(row7)[2])
+        row7, nl7, fired7 = lane_row(script7, pre7, L7)
     else:
         row7, nl7, fired7 = check_quiet(script7, pre7, L7, "97")
     assert nl7 == len(listed)
     if clause7:
-        n_l = "one" if len(listed) == 1 else str(len(listed))
-        new7 = f"Lane {L7}, run with {SHA}: the {n_l} its lane {L} lists in {RNG} ({clause7}). "
+        new7 = f"Lane {L7}, run with {SHA}: the {cnt(len(listed))} its lane {L} lists in {RNG} ({clause7}). "
     elif len(listed) == 1:
         new7 = f"Lane {L7}, run with {SHA}: the one its lane {L} lists in {RNG}, {listed[0]} (the guard did not fire). "
     else:
@@ -575,7 +573,7 @@ def r93():
         pL = prev_letter(pre, "lane", L)
         row, nl, _ = check_quiet(script, pre, L, "93")
         assert nl == len(listed)
-        which = ("one" if len(listed) == 1 else str(len(listed))) + f" with such a joint ({_and(listed)})"
+        which = f"{cnt(len(listed))} with such a joint ({join(listed)})"
         new = f" Screen {S} and lane {L}, run with {SHA}: the {n} of {RNG}, {which}, not marked."
         lane_cmd = (f"OPENBLAS_NUM_THREADS=1 python benchmarks/{script} benchmarks/results/{pre}_lane_{L}.json "
                     f"{' '.join(map(str, listed))}")
@@ -794,16 +792,13 @@ def r108():
     tsub(name, f"The rule acted in one log of {old}.", f"The rule acted in one log of {old + len(keys)}.")
     lanes_sub(name, FL.letters(pre, "lane"))
     i = len(FL.letters(pre, "lane")) - 1
-    ms = list(re.finditer(r"\n(    assert (?:keys\[\d+\] == |not \[k for k in touchable if )[^\n]*)", tests[name]))
     if m_none and int(m_none.group(2)) == A - 1:     # the 'have none' just before the block: one range with the lane's
         lo = m_none.group(1)
-        tnone = f"\n    assert not [k for k in touchable if {lo} <= k < {A}]"
-        if tnone in tests[name]:
-            tests[name] = tests[name].replace(tnone, "")
+        tests[name] = tests[name].replace(f"\n    assert not [k for k in touchable if {lo} <= k < {A}]", "")
         line = (f"\n    assert keys[{i}] == [k for k in touchable if {lo} <= k < {E}] == {keys}     # {lo}-{A - 1}: none")
-        ms = list(re.finditer(r"\n(    assert (?:keys\[\d+\] == |not \[k for k in touchable if )[^\n]*)", tests[name]))
     else:
         line = f"\n    assert keys[{i}] == [k for k in touchable if {A} <= k < {E}] == {keys}"
+    ms = list(re.finditer(r"\n(    assert (?:keys\[\d+\] == |not \[k for k in touchable if )[^\n]*)", tests[name]))
     tests[name] = tests[name][:ms[-1].end()] + line + tests[name][ms[-1].end():]
     log.append(f"108 lane {L} ({len(keys)})")
 
